@@ -1,0 +1,178 @@
+"""Ballistic jump benchmarks (printed, never asserted).
+
+Run: .venv/bin/python bench/jumps.py [--quick]
+
+- steering throughput (pairs per second, batched) and the range pre-filter;
+- roadmap build time, node and edge counts on a synthetic platforms scene;
+- query time (median over random start/goal pairs), save/load time.
+
+Jump paper Table 1 for comparison: roadmap build 0.51 to 107 s; one jump 0.12 to 1.39 s on
+average; contact generation 25 to 77 ms (one core of a Xeon E5-1630 v3 at 3.7 GHz).
+Real scenes, characters and keyframes come in later rounds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from planner.ballistic.roadmap import (
+    Connection,
+    Roadmap,
+    RoadmapNodes,
+    RoadmapParams,
+    build_roadmap,
+)
+from planner.ballistic.steering import range_prefilter, steer
+from planner.ballistic.synthetic import BoxWorld, Platforms, PlatformSampler
+
+
+def median_seconds(fn: Callable[[], object], repeats: int) -> float:
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times)
+
+
+def bench_steering(quick: bool) -> None:
+    rng = np.random.default_rng(0)
+    print("== steering (closed form, batched) ==")
+    print(f"{'batch':>9} {'median s':>10} {'pairs/s':>12} {'ok %':>6}")
+    for n in (1_000, 10_000, 100_000) if quick else (1_000, 10_000, 100_000, 1_000_000):
+        p0 = rng.uniform(-4, 4, (n, 3))
+        p1 = rng.uniform(-4, 4, (n, 3))
+        n0 = np.array([0.0, 0.0, 1.0]) + rng.normal(scale=0.3, size=(n, 3))
+        n1 = np.array([0.0, 0.0, 1.0]) + rng.normal(scale=0.3, size=(n, 3))
+
+        def run(
+            p0: np.ndarray = p0, p1: np.ndarray = p1, n0: np.ndarray = n0, n1: np.ndarray = n1
+        ) -> object:
+            return steer(p0, p1, n0, 1.0, n1, 1.0, v0max=7.0, vimpmax=10.0)
+
+        seconds = median_seconds(run, 3 if n >= 100_000 else 7)
+        ok = float(np.mean(steer(p0, p1, n0, 1.0, n1, 1.0, v0max=7.0, vimpmax=10.0).ok))
+        print(f"{n:>9} {seconds:>10.4f} {n / seconds:>12.0f} {100 * ok:>6.1f}")
+    n = 1_000_000
+    p0, p1 = rng.uniform(-4, 4, (n, 3)), rng.uniform(-4, 4, (n, 3))
+    seconds = median_seconds(lambda: range_prefilter(p0, p1, 7.0, 10.0), 5)
+    print(f"range pre-filter: {n / seconds:.0f} pairs/s")
+    # The roadmap's case: every pair already passed the pre-filter.
+    keep = range_prefilter(p0, p1, 7.0, 10.0)
+    a, b = p0[keep][:100_000], p1[keep][:100_000]
+    up = np.array([0.0, 0.0, 1.0])
+    seconds = median_seconds(lambda: steer(a, b, up, 1.0, up, 1.0, v0max=7.0, vimpmax=10.0), 3)
+    print(f"steering after the pre-filter: {len(a) / seconds:.0f} pairs/s (batch {len(a)})")
+
+
+def platforms_scene(rng: np.random.Generator, side: int) -> tuple[Platforms, BoxWorld]:
+    """side x side platforms 2 x 2 m, 1 m gaps, heights in [0, 1] m, a pillar per gap row."""
+    ij = np.array([(i, j) for i in range(side) for j in range(side)], dtype=float)
+    lo = ij * 3.0
+    hi = lo + 2.0
+    top = rng.uniform(0.0, 1.0, len(ij))
+    plat = Platforms(lo=lo, hi=hi, top=top)
+    blo, bhi = plat.boxes()
+    pillars_lo = np.array(
+        [[3.0 * i + 2.4, 3.0 * j, -1.0] for i in range(side - 1) for j in range(side)]
+    )
+    pillars_hi = pillars_lo + np.array([0.2, 1.0, 2.5])
+    world = BoxWorld(
+        centres=[[-0.2, 0, 0], [0, 0, 0], [0.2, 0, 0]],
+        radius=0.15,
+        box_lo=np.vstack([blo, pillars_lo]),
+        box_hi=np.vstack([bhi, pillars_hi]),
+    )
+    return plat, world
+
+
+def bench_roadmap(quick: bool) -> None:
+    rng = np.random.default_rng(1)
+    plat, world = platforms_scene(rng, 4)
+    checker = world.inflated(0.05)
+    sampler = PlatformSampler(plat, root_height=0.45, mu=1.0, margin=0.2)
+    print("\n== roadmap on synthetic platforms (4 x 4 platforms, 12 pillars) ==")
+    print(
+        f"{'nodes':>6} {'mode':>9} {'conn':>9} {'build s':>8} {'edges':>7} {'searches':>9} "
+        f"{'query ms':>9} {'solved':>7} {'jumps':>6}"
+    )
+    sizes = (250, 1000) if quick else (250, 1000, 4000, 10000)
+    for n_nodes in sizes:
+        for lazy in (False, True) if n_nodes <= 1000 else (True,):
+            params = RoadmapParams(
+                v0max=6.0,
+                vimpmax=9.0,
+                connection=Connection.RADIUS,
+                neighbours=24,
+                max_gap=0.05,
+                lazy=lazy,
+                scene_key="bench",
+            )
+            start = time.perf_counter()
+            res = build_roadmap(
+                sampler, n_nodes, params, rng=np.random.default_rng(n_nodes), collides_many=checker
+            )
+            build_s = time.perf_counter() - start
+            roadmap = res.value
+            assert roadmap is not None
+            ends = sampler.sample(40, rng=np.random.default_rng(99))
+            times, solved, jumps = [], 0, []
+            for k in range(20):
+                s_node = ends.take(np.array([2 * k]))
+                g_node = ends.take(np.array([2 * k + 1]))
+                t0 = time.perf_counter()
+                out = roadmap.query(s_node, g_node, collides_many=checker)
+                times.append(time.perf_counter() - t0)
+                if out.value is not None:
+                    solved += 1
+                    jumps.append(len(out.value))
+            stats = roadmap.stats
+            print(
+                f"{len(roadmap.nodes):>6} {'lazy' if lazy else 'eager':>9} "
+                f"{params.connection.value:>9} {build_s:>8.2f} {len(roadmap.edges):>7} "
+                f"{stats.get('searches', 0)!s:>9} {1e3 * statistics.median(times):>9.2f} "
+                f"{solved:>4}/20 {statistics.mean(jumps) if jumps else 0:>6.1f}"
+            )
+    with tempfile.TemporaryDirectory() as tmp:
+        file = Path(tmp) / "roadmap.npz"
+        save_s = median_seconds(lambda: roadmap.save(file), 3)
+        load_s = median_seconds(lambda: Roadmap.load(file, expected=roadmap.params), 3)
+        size = file.stat().st_size
+    print(
+        f"save {1e3 * save_s:.1f} ms, load {1e3 * load_s:.1f} ms, file {size / 1e6:.2f} MB "
+        f"({len(roadmap.nodes)} nodes, {len(roadmap.edges)} edges, last roadmap above)"
+    )
+    # A single query on a prebuilt roadmap, start and goal on the far corners.
+    corner_a = RoadmapNodes.single([1.0, 1.0, plat.top[0] + 0.45], [0, 0, 0, 1], [0, 0, 1], 1.0)
+    last = len(plat.top) - 1
+    corner_b = RoadmapNodes.single(
+        [10.0, 10.0, plat.top[last] + 0.45], [0, 0, 0, 1], [0, 0, 1], 1.0
+    )
+    seconds = median_seconds(lambda: roadmap.query(corner_a, corner_b, collides_many=checker), 5)
+    out = roadmap.query(corner_a, corner_b, collides_many=checker)
+    print(
+        f"corner-to-corner query: {1e3 * seconds:.2f} ms, status {out.status.value}, "
+        f"{len(out.value) if out.value is not None else 0} jumps"
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="smaller sizes")
+    args = parser.parse_args()
+    bench_steering(args.quick)
+    bench_roadmap(args.quick)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,56 @@
+"""A small typed wrapper over Gecko's HTTP API, taking an injected ``httpx.AsyncClient``."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import httpx
+
+
+class GeckoError(Exception):
+    """An error answer from the service: HTTP status plus the JSON error envelope."""
+
+    def __init__(self, status: int, code: str, message: str, field: str | None) -> None:
+        super().__init__(f"{status} {code}: {message}" + (f" (field {field})" if field else ""))
+        self.status = status
+        self.code = code
+        self.message = message
+        self.field = field
+
+
+def _checked(response: httpx.Response) -> Any:
+    if response.status_code >= 400:
+        try:
+            error = response.json()["error"]
+            raise GeckoError(
+                response.status_code, error["code"], error["message"], error.get("field")
+            )
+        except (ValueError, KeyError, TypeError):
+            raise GeckoError(response.status_code, "http_error", response.text, None) from None
+    return response.json()
+
+
+class GeckoClient:
+    """Calls the service; every method returns the decoded JSON answer or raises GeckoError."""
+
+    def __init__(self, http: httpx.AsyncClient) -> None:
+        self.http = http
+
+    async def health(self) -> dict[str, Any]:
+        return dict(_checked(await self.http.get("/health")))
+
+    async def characters(self) -> list[dict[str, Any]]:
+        return list(_checked(await self.http.get("/v1/characters")))
+
+    async def character(self, character_id: str) -> dict[str, Any]:
+        return dict(_checked(await self.http.get(f"/v1/characters/{character_id}")))
+
+    async def scenes(self) -> list[dict[str, Any]]:
+        return list(_checked(await self.http.get("/v1/scenes")))
+
+    async def scene(self, scene_id: str) -> dict[str, Any]:
+        return dict(_checked(await self.http.get(f"/v1/scenes/{scene_id}")))
+
+    async def upload_scene(self, mesh: bytes, fmt: str, name: str = "") -> dict[str, Any]:
+        params = {"format": fmt, "name": name}
+        return dict(_checked(await self.http.post("/v1/scenes", params=params, content=mesh)))

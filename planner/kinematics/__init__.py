@@ -1,0 +1,84 @@
+"""Whole-body inverse kinematics over Pinocchio models with a free-flyer root.
+
+``solve_ik`` (weighted damped least squares with joint limits), ``project_contact`` (one
+limb onto a surface), ``track_com`` (keyframes along a COM trajectory), swing arcs, forward
+kinematics helpers and conversions between Pinocchio configurations and named joint values.
+"""
+
+from planner.kinematics.ik import IkResult, resolve_active, solve_ik
+from planner.kinematics.keyframes import (
+    KeyframeTrack,
+    hold_contacts,
+    keyframe_times,
+    minimum_jerk,
+    swing_arc,
+    swing_trajectory,
+    track_com,
+)
+from planner.kinematics.model import (
+    bounded_dofs,
+    clamp_to_limits,
+    com_position,
+    configuration_from,
+    configuration_parts,
+    frame_id,
+    frame_placement,
+    frame_placements,
+    frame_support_dofs,
+    has_free_flyer_root,
+    joint_dofs,
+    joint_id,
+    limb_dofs,
+    scratch_data,
+    within_limits,
+)
+from planner.kinematics.projection import project_contact
+from planner.kinematics.tasks import (
+    TIER_WEIGHTS,
+    ComTask,
+    ContactNormalTask,
+    FramePlacementTask,
+    FramePositionTask,
+    PostureTask,
+    Priority,
+    TargetTask,
+    Task,
+)
+
+__all__ = [
+    "TIER_WEIGHTS",
+    "ComTask",
+    "ContactNormalTask",
+    "FramePlacementTask",
+    "FramePositionTask",
+    "IkResult",
+    "KeyframeTrack",
+    "PostureTask",
+    "Priority",
+    "TargetTask",
+    "Task",
+    "bounded_dofs",
+    "clamp_to_limits",
+    "com_position",
+    "configuration_from",
+    "configuration_parts",
+    "frame_id",
+    "frame_placement",
+    "frame_placements",
+    "frame_support_dofs",
+    "has_free_flyer_root",
+    "hold_contacts",
+    "joint_dofs",
+    "joint_id",
+    "keyframe_times",
+    "limb_dofs",
+    "minimum_jerk",
+    "project_contact",
+    "resolve_active",
+    "scratch_data",
+    "solve_ik",
+    "swing_arc",
+    "swing_trajectory",
+    "track_com",
+    "within_limits",
+]

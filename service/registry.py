@@ -1,0 +1,158 @@
+"""The service's registry: characters with their offline data, built-in and uploaded scenes.
+
+Uploaded scenes are stored as ``<id>.npz`` (float64 vertices, int64 faces) plus ``<id>.json``
+(name) in the scenes directory; both are written to temporary files and renamed into place, so a
+failed upload leaves nothing behind.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import tempfile
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from planner.character import (
+    Character,
+    builtin_character_ids,
+    character_spec_path,
+    load_character,
+    real_robot_ids,
+)
+from planner.offline import OfflineData, load_offline_data
+from planner.scene import Scene, build_scene, builtin_scene_ids, load_builtin_scene
+
+log = logging.getLogger("gecko.registry")
+
+
+@dataclass(frozen=True, slots=True)
+class CharacterEntry:
+    """A served character and its offline reachability data."""
+
+    character: Character
+    data: OfflineData
+
+
+class Registry:
+    """Characters (loaded at start) and scenes (built-in on first use, uploaded from disk)."""
+
+    def __init__(
+        self,
+        *,
+        cache_dir: Path,
+        scenes_dir: Path,
+        character_ids: list[str] | None = None,
+        build_missing_data: bool = True,
+        data_seed: int = 0,
+    ) -> None:
+        self.cache_dir = cache_dir
+        self.scenes_dir = scenes_dir
+        self.cache_dir.mkdir(parents=True, exist_ok=True)
+        self.scenes_dir.mkdir(parents=True, exist_ok=True)
+        self._lock = threading.Lock()
+        self._scenes: dict[str, Scene] = {}
+        self.characters: dict[str, CharacterEntry] = {}
+        ids = character_ids if character_ids is not None else default_character_ids()
+        for character_id in ids:
+            character = load_character(character_spec_path(character_id))
+            data = load_offline_data(
+                character,
+                cache_dir,
+                seed=data_seed,
+                build_if_missing=build_missing_data,
+                progress=False,
+            )
+            self.characters[character_id] = CharacterEntry(character, data)
+
+    # -- scenes -------------------------------------------------------------------------------
+
+    @staticmethod
+    def builtin_scene_ids() -> tuple[str, ...]:
+        return tuple(builtin_scene_ids())
+
+    def uploaded_scene_ids(self) -> list[str]:
+        return sorted(p.stem for p in self.scenes_dir.glob("*.json"))
+
+    def scene_ids(self) -> list[str]:
+        return [*self.builtin_scene_ids(), *self.uploaded_scene_ids()]
+
+    def is_builtin(self, scene_id: str) -> bool:
+        return scene_id in self.builtin_scene_ids()
+
+    def get_scene(self, scene_id: str) -> Scene | None:
+        """The scene with this id, loading it on first use; None if unknown."""
+        with self._lock:
+            if scene_id in self._scenes:
+                return self._scenes[scene_id]
+        if self.is_builtin(scene_id):
+            scene = load_builtin_scene(scene_id, cache_dir=self.cache_dir)
+        else:
+            scene_file = self.scenes_dir / f"{scene_id}.npz"
+            meta_file = self.scenes_dir / f"{scene_id}.json"
+            if not (_is_safe_id(scene_id) and scene_file.exists() and meta_file.exists()):
+                return None
+            meta = json.loads(meta_file.read_text())
+            with np.load(scene_file) as arrays:
+                mesh = trimesh.Trimesh(arrays["vertices"], arrays["faces"], process=False)
+            scene = build_scene(
+                mesh, scene_id=scene_id, name=str(meta.get("name", "")), cache_dir=self.cache_dir
+            )
+        with self._lock:
+            self._scenes.setdefault(scene_id, scene)
+            return self._scenes[scene_id]
+
+    def add_uploaded_scene(self, mesh: trimesh.Trimesh, name: str) -> Scene:
+        """Build a scene from an uploaded mesh and persist it atomically; returns the scene.
+
+        The id is a content hash of the mesh, so uploading the same mesh twice gives one id.
+        """
+        scene = build_scene(mesh, name=name, cache_dir=self.cache_dir)
+        existing = self.get_scene(scene.id)
+        if existing is not None:
+            return existing
+        _atomic_write_npz(
+            self.scenes_dir / f"{scene.id}.npz",
+            vertices=np.asarray(scene.vertices, dtype=np.float64),
+            faces=np.asarray(scene.faces, dtype=np.int64),
+        )
+        _atomic_write_text(self.scenes_dir / f"{scene.id}.json", json.dumps({"name": name}))
+        with self._lock:
+            self._scenes[scene.id] = scene
+        return scene
+
+
+def default_character_ids() -> list[str]:
+    """Built-in characters plus the real robots whose data package is installed."""
+    return [*builtin_character_ids(), *real_robot_ids()]
+
+
+def _is_safe_id(identifier: str) -> bool:
+    return identifier.isalnum() and len(identifier) <= 128
+
+
+def _atomic_write_text(path: Path, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=path.suffix)
+    try:
+        with os.fdopen(fd, "w") as handle:
+            handle.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _atomic_write_npz(path: Path, **arrays: np.ndarray) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".npz")
+    try:
+        with os.fdopen(fd, "wb") as handle:
+            np.savez(handle, **arrays)  # type: ignore[arg-type]
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise

@@ -1,0 +1,53 @@
+"""Service settings, read from ``GECKO_*`` environment variables."""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+
+from pydantic import Field
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+
+
+class Settings(BaseSettings):
+    """Where Gecko keeps its files and how much work one request may ask for."""
+
+    model_config = SettingsConfigDict(env_prefix="GECKO_")
+
+    home: Path = Field(default=REPO_ROOT / ".gecko", description="root of caches and uploads")
+    cache_dir: Path | None = Field(
+        default=None, description="offline data and collision caches (default: <home>/cache)"
+    )
+    scenes_dir: Path | None = Field(
+        default=None, description="uploaded scenes (default: <home>/scenes)"
+    )
+    build_missing_data: bool = Field(
+        default=True, description="build a character's offline data at start-up if not cached"
+    )
+    characters: str = Field(
+        default="auto",
+        description="comma-separated character ids to serve, or 'auto' for the built-in ones "
+        "plus the real robots whose data package is installed",
+    )
+    max_upload_bytes: int = Field(default=50 * 1024 * 1024, gt=0)
+    max_triangles: int = Field(default=2_000_000, gt=0)
+    worker_processes: int = Field(default=2, ge=1, le=64)
+    data_seed: int = Field(default=0, ge=0)
+
+    @property
+    def cache_path(self) -> Path:
+        """Offline data and collision caches."""
+        return self.cache_dir or self.home / "cache"
+
+    @property
+    def scenes_path(self) -> Path:
+        """Uploaded scenes, one ``<id>.npz`` + ``<id>.json`` pair each."""
+        return self.scenes_dir or self.home / "scenes"
+
+
+@lru_cache(maxsize=1)
+def get_settings() -> Settings:
+    """The process-wide settings (read once from the environment)."""
+    return Settings()

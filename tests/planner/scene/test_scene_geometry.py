@@ -1,0 +1,169 @@
+"""Contact regions and planar polygon kernels (hypothesis property tests)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+from hypothesis import given
+from hypothesis import strategies as st
+from scipy.optimize import linprog
+from scipy.spatial import ConvexHull, HalfspaceIntersection
+
+from planner.poses import pose_matrix, yaw_matrix
+from planner.scene import ContactRegion, SurfaceKind, build_scene, contact_region
+from planner.scene import builtin as b
+from planner.scene import geometry2d as g2
+from planner.shapes import Box, ConvexPolytope
+
+coordinate = st.floats(-5.0, 5.0, allow_nan=False, allow_infinity=False)
+point_sets = st.lists(st.tuples(coordinate, coordinate), min_size=3, max_size=12)
+
+
+def _convex_polygon(points: list[tuple[float, float]]) -> np.ndarray | None:
+    p = np.asarray(points, dtype=np.float64)
+    try:
+        hull = ConvexHull(p)
+    except Exception:
+        return None
+    if hull.volume < 1e-3:
+        return None
+    return p[hull.vertices]  # counter-clockwise in 2D
+
+
+@given(point_sets)
+def test_signed_area_and_centroid_match_qhull(points) -> None:
+    polygon = _convex_polygon(points)
+    if polygon is None:
+        return
+    hull = ConvexHull(polygon)
+    assert g2.signed_area(polygon) == pytest.approx(hull.volume, rel=1e-9)
+    assert g2.signed_area(polygon[::-1]) == pytest.approx(-hull.volume, rel=1e-9)
+    # Centroid of a fan triangulation.
+    tri = np.stack([np.repeat(polygon[:1], len(polygon) - 2, 0), polygon[1:-1], polygon[2:]], 1)
+    e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    areas = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    expected = (tri.mean(axis=1) * areas[:, None]).sum(0) / areas.sum()
+    assert np.allclose(g2.polygon_centroid(polygon), expected, atol=1e-9)
+
+
+@given(point_sets, st.floats(-np.pi, np.pi), st.floats(-3.0, 3.0))
+def test_clipping_splits_area(points, angle, offset) -> None:
+    polygon = _convex_polygon(points)
+    if polygon is None:
+        return
+    a = np.array([[np.cos(angle), np.sin(angle)]])
+    inside = g2.clip_halfplanes(polygon, a, np.array([offset]))
+    outside = g2.clip_halfplanes(polygon, -a, np.array([-offset]))
+    total = g2.signed_area(inside) + g2.signed_area(outside)
+    assert total == pytest.approx(g2.signed_area(polygon), rel=1e-9, abs=1e-9)
+    if len(inside):
+        assert np.all(inside @ a[0] <= offset + 1e-9)
+
+
+@given(point_sets, st.lists(st.tuples(coordinate, coordinate), min_size=1, max_size=30))
+def test_winding_agrees_with_convex_halfspaces(points, queries) -> None:
+    polygon = _convex_polygon(points)
+    if polygon is None:
+        return
+    q = np.asarray(queries, dtype=np.float64)
+    equations = ConvexHull(polygon).equations
+    signed = q @ equations[:, :2].T + equations[:, 2]
+    clear = np.all(signed < -1e-9, axis=1) | np.any(signed > 1e-9, axis=1)
+    expected = np.all(signed < 0, axis=1)
+    got = g2.winding_numbers(q, [polygon]) != 0
+    assert np.array_equal(got[clear], expected[clear])
+    reverse = g2.winding_numbers(q, [polygon[::-1]])
+    assert np.array_equal(reverse[clear], -expected[clear].astype(np.int64))
+
+
+def _oracle_area(polygon: np.ndarray, a2: np.ndarray, b2: np.ndarray) -> float:
+    """Area of (convex polygon) & {a2 x <= b2} by scipy's half-space intersection."""
+    eq = ConvexHull(polygon).equations  # n.x + d <= 0
+    halfspaces = np.vstack([eq, np.column_stack([a2, -b2])])
+    norms = np.linalg.norm(halfspaces[:, :2], axis=1)
+    result = linprog(
+        c=[0, 0, -1], A_ub=np.column_stack([halfspaces[:, :2], norms]), b_ub=-halfspaces[:, 2],
+        bounds=[(None, None), (None, None), (0, 1)],
+    )
+    if result.status != 0 or result.x[2] < 1e-7:
+        return 0.0
+    vertices = HalfspaceIntersection(halfspaces, result.x[:2]).intersections
+    return float(ConvexHull(vertices).volume)
+
+
+@given(point_sets, st.floats(-1.0, 1.0), st.floats(-1.0, 1.0), st.floats(-np.pi, np.pi),
+       st.floats(0.1, 1.5), st.floats(0.1, 1.5), st.floats(-0.3, 0.3))
+def test_contact_region_area_matches_halfspace_oracle(points, x, y, yaw, hx, hy, height) -> None:
+    polygon = _convex_polygon(points)
+    if polygon is None:
+        return
+    # A one-surface scene: the polygon fan-triangulated at z = 0.5.
+    vertices = np.column_stack([polygon, np.full(len(polygon), 0.5)])
+    faces = np.array([[0, i, i + 1] for i in range(1, len(polygon) - 1)])
+    scene = build_scene(trimesh.Trimesh(vertices, faces, process=False))
+    (surface,) = scene.surfaces
+    box = Box(half_extents=[hx, hy, 0.4])
+    pose = pose_matrix(np.array([x, y, 0.5 + height]), yaw_matrix(np.array(yaw)))
+    region = scene.collision.contact_region(box, pose, surface)
+    expected = _oracle_area(polygon, *_box_section(box, pose))
+    if region is None:
+        assert expected == pytest.approx(0.0, abs=1e-6)
+        return
+    assert region.area == pytest.approx(expected, rel=1e-6, abs=1e-9)
+    assert np.allclose(region.polygon[:, 2], 0.5)
+    assert g2.signed_area(region.polygon[:, :2]) == pytest.approx(region.area, rel=1e-9)
+    assert surface.contains_projection(region.centroid[None])[0] or region.area < 1e-6
+
+
+def _box_section(box: Box, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Half-planes of the box's section by z = 0.5 (the box is upright: z-faces are parallel)."""
+    rotation, centre = pose[:3, :3], pose[:3, 3]
+    if abs(centre[2] - 0.5) > box.half_extents[2]:
+        return np.array([[0.0, 0.0]]), np.array([-1.0])
+    axes = rotation[:2, :2].T  # rows: box x and y axes in the plane
+    a2 = np.vstack([axes, -axes])
+    b2 = np.concatenate([box.half_extents[:2] + axes @ centre[:2],
+                         box.half_extents[:2] - axes @ centre[:2]])
+    return a2, b2
+
+
+def test_box_across_a_tread_gives_the_overlap_rectangle(builtin_scenes) -> None:
+    scene = builtin_scenes["stairs"]
+    step = 2
+    height = step * b.STAIRS_RISE
+    tread = next(s for s in scene.surfaces_of(SurfaceKind.SUPPORT)
+                 if abs(s.centroid[2] - height) < 1e-9 and abs(s.centroid[1]) < 1e-9)
+    x_front = b.STAIRS_START_X + (step - 1) * b.STAIRS_TREAD
+    box = Box(half_extents=[0.2, 0.2, 0.1])
+    pose = pose_matrix(np.array([x_front + 0.1, 0.45, height + 0.02]))
+    region = scene.collision.contact_region(box, pose, tread)
+    assert isinstance(region, ContactRegion)
+    polygon, centroid = region
+    expected = {(round(x_front, 9), 0.25), (round(x_front + 0.3, 9), 0.25),
+                (round(x_front + 0.3, 9), 0.5), (round(x_front, 9), 0.5)}
+    assert {(round(px, 9), round(py, 9)) for px, py, _ in polygon} == expected
+    assert np.allclose(polygon[:, 2], height)
+    assert g2.signed_area(polygon[:, :2]) == pytest.approx(0.3 * 0.25)  # counter-clockwise
+    assert np.allclose(centroid, [x_front + 0.15, 0.375, height])
+    assert region.area == pytest.approx(0.075)
+    # Too high above the tread, or beside the stairs: no region.
+    pose[2, 3] = height + 0.2
+    assert scene.collision.contact_region(box, pose, tread) is None
+    assert contact_region(box, pose_matrix(np.array([x_front, 1.2, height])), tread) is None
+
+
+def test_contact_region_of_a_rotated_polytope_on_the_ground(builtin_scenes) -> None:
+    scene = builtin_scenes["flat"]
+    (ground,) = scene.surfaces
+    octahedron = ConvexPolytope.from_points(
+        np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
+    )
+    region = scene.collision.contact_region(octahedron, pose_matrix(np.array([1.0, 2.0, 0.5])),
+                                            ground)
+    assert region is not None
+    # Section of |x| + |y| + |z| <= 1 at z = -0.5 (local): a diamond of half-diagonal 0.5.
+    assert region.area == pytest.approx(0.5)
+    assert np.allclose(region.centroid, [1.0, 2.0, 0.0])
+    with pytest.raises(TypeError):
+        contact_region(object(), np.eye(4), ground)  # type: ignore[arg-type]

@@ -1,0 +1,176 @@
+"""Static equilibrium: polytope vs the reference C++ library, vs the LP, degenerate cases."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import trajectory
+from tests.trajectory.helpers import patch, random_phase
+from trajectory import Contact, ContactPhase
+
+
+def _oracle():  # type: ignore[no-untyped-def]
+    try:
+        from bench._oracles import ReferenceEquilibrium
+    except ImportError as exc:  # pragma: no cover
+        pytest.skip(str(exc))
+    try:
+        return ReferenceEquilibrium(70.0)
+    except ImportError as exc:
+        pytest.skip(str(exc))
+
+
+def test_friction_rays_match_reference_construction() -> None:
+    n = np.array([0.0, 0.0, 1.0])
+    rays = trajectory.friction_rays(n, 0.5)
+    t1 = np.cross(n, [0.0, 1.0, 0.0])
+    t2 = np.cross(n, t1)
+    ang = np.pi / 4 + np.arange(4) * np.pi / 2
+    expected = n + 0.5 * (np.sin(ang)[:, None] * t1 + np.cos(ang)[:, None] * t2)
+    expected /= np.linalg.norm(expected, axis=1, keepdims=True)
+    np.testing.assert_allclose(rays, expected, atol=1e-15)
+    # normal parallel to e_y falls back to n x e_x
+    r2 = trajectory.friction_rays(np.array([0.0, 1.0, 0.0]), 0.5)
+    assert np.all(np.isfinite(r2))
+    assert trajectory.friction_rays(n, 0.5, 8).shape == (8, 3)
+
+
+def test_agrees_with_hpp_centroidal_dynamics() -> None:
+    """Same answer as the reference PP polytope for every COM farther than 1 mm from its
+    boundary. Where cdd's floating-point polytope contradicts the reference's own LP
+    (computeEquilibriumRobustness), the reference LP decides; sets where the reference
+    perturbed its input after a cdd failure are skipped."""
+    ref = _oracle()
+    from bench._oracles import ReferenceEquilibrium
+
+    ref_lp = ReferenceEquilibrium(70.0, algorithm="LP")
+    rng = np.random.default_rng(3)
+    n_sets, checked, tie_breaks = 0, 0, 0
+    while n_sets < 500:
+        k = int(rng.integers(1, 7))
+        phase = random_phase(rng, k)
+        pts = np.vstack([c.points for c in phase.contacts])
+        nrm = np.vstack([np.tile(c.normal, (c.points.shape[0], 1)) for c in phase.contacts])
+        if not ref.set_contacts(pts, nrm, 0.5):
+            continue
+        n_sets += 1
+        A_ref, b_ref = ref.com_polytope()
+        A, _b = trajectory.equilibrium_polytope(phase)
+        assert np.allclose(A[:, 2], 0.0)
+        centre = pts.mean(axis=0)
+        coms = np.column_stack(
+            [centre[:2] + rng.uniform(-0.8, 0.8, (60, 2)), rng.uniform(0.5, 1.2, 60)]
+        )
+        norms = np.linalg.norm(A_ref, axis=1)
+        norms[norms == 0] = 1.0
+        v_ref = ((coms @ A_ref.T - b_ref) / norms).max(axis=1)
+        far = np.abs(v_ref) > 1e-3
+        expected = v_ref <= 0
+        ours = trajectory.is_static_equilibrium(phase, coms)
+        for i in np.flatnonzero(far & (ours != expected)):
+            ref_lp.set_contacts_fast(pts, nrm, 0.5)
+            _status, robustness = ref_lp.robustness(coms[i])
+            expected[i] = robustness >= 0.0
+            tie_breaks += 1
+        np.testing.assert_array_equal(ours[far], expected[far])
+        checked += int(far.sum())
+    assert checked > 10_000
+    assert tie_breaks <= checked // 1000
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), k=st.integers(1, 4))
+def test_polytope_consistent_with_lp(seed: int, k: int) -> None:
+    rng = np.random.default_rng(seed)
+    phase = random_phase(rng, k)
+    poly = trajectory.equilibrium_halfspaces(phase)
+    pts = np.vstack([c.points for c in phase.contacts]).mean(axis=0)
+    for _ in range(6):
+        com = np.array([*(pts[:2] + rng.uniform(-0.5, 0.5, 2)), 0.9])
+        viol = float(poly.violation(com))
+        margin = trajectory.equilibrium_margin(phase, com)
+        if viol < -1e-4:
+            assert margin.feasible
+        elif viol > 1e-4:
+            assert not margin.feasible
+
+
+def test_flat_feet_region_is_support_polygon() -> None:
+    foot = patch(np.zeros(3), np.array([0.0, 0.0, 1.0]), half=0.1)
+    A, b = trajectory.equilibrium_polytope(ContactPhase([foot]))
+    assert trajectory.is_static_equilibrium(ContactPhase([foot]), np.array([0.09, -0.09, 1.0]))
+    assert not trajectory.is_static_equilibrium(ContactPhase([foot]), np.array([0.11, 0.0, 1.0]))
+    ok = trajectory.is_static_equilibrium(
+        ContactPhase([foot]), np.array([[0.0, 0.0, 3.0], [0.2, 0.0, 0.0]])
+    )
+    assert ok.tolist() == [True, False]
+    assert A.shape[1] == 3 and b.ndim == 1
+
+
+def test_degenerate_cases() -> None:
+    up = np.array([0.0, 0.0, 1.0])
+    # empty contact set: nothing is in equilibrium
+    empty = ContactPhase([])
+    _A, _b = trajectory.equilibrium_polytope(empty)
+    assert not trajectory.is_static_equilibrium(empty, np.zeros(3))
+    # one point contact: only the vertical line above it
+    point = ContactPhase([Contact(points=np.array([[0.3, 0.2, 0.0]]), normal=up)])
+    assert trajectory.is_static_equilibrium(point, np.array([0.3, 0.2, 1.0]))
+    assert not trajectory.is_static_equilibrium(point, np.array([0.31, 0.2, 1.0]))
+    # two point contacts: the segment between them
+    two = ContactPhase(
+        [
+            Contact(points=np.array([[0.0, 0.0, 0.0]]), normal=up),
+            Contact(points=np.array([[0.4, 0.0, 0.0]]), normal=up),
+        ]
+    )
+    assert trajectory.is_static_equilibrium(two, np.array([0.2, 0.0, 1.0]))
+    assert not trajectory.is_static_equilibrium(two, np.array([0.2, 0.01, 1.0]))
+    assert not trajectory.is_static_equilibrium(two, np.array([0.5, 0.0, 1.0]))
+    # hands pressing opposite walls: unbounded along the walls' axis, no exception
+    walls = ContactPhase(
+        [
+            patch(np.array([0.5, 0.0, 1.0]), np.array([-1.0, 0.0, 0.0]), mu=1.0),
+            patch(np.array([-0.5, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]), mu=1.0),
+        ]
+    )
+    assert trajectory.is_static_equilibrium(walls, np.array([0.0, 0.0, 1.0]))
+    margin = trajectory.equilibrium_margin(walls, np.array([0.0, 0.0, 1.0]))
+    assert margin.feasible
+    # coplanar patches on flat ground behave like their joint support polygon
+    feet = ContactPhase(
+        [patch(np.array([0.0, 0.1, 0.0]), up, 0.05), patch(np.array([0.0, -0.1, 0.0]), up, 0.05)]
+    )
+    assert trajectory.is_static_equilibrium(feet, np.array([0.0, 0.0, 0.9]))
+    assert not trajectory.is_static_equilibrium(feet, np.array([0.0, 0.2, 0.9]))
+    # a slope too steep for the friction cone: empty
+    steep = np.array([np.sin(1.2), 0.0, np.cos(1.2)])
+    assert not trajectory.is_static_equilibrium(
+        ContactPhase([patch(np.zeros(3), steep, mu=0.3)]), np.array([0.0, 0.0, 1.0])
+    )
+
+
+def test_margin_positive_inside_negative_outside() -> None:
+    foot = ContactPhase([patch(np.zeros(3), np.array([0.0, 0.0, 1.0]), half=0.1)])
+    inside = trajectory.equilibrium_margin(foot, np.array([0.0, 0.0, 1.0]))
+    outside = trajectory.equilibrium_margin(foot, np.array([0.3, 0.0, 1.0]))
+    assert inside.feasible and inside.margin > 0
+    w = foot.wrench_generators.T @ inside.weights
+    np.testing.assert_allclose(w[:3], [0.0, 0.0, 70.0 * 9.81], atol=1e-5)
+    assert not outside.feasible and outside.margin < 0
+
+
+def test_validation_errors() -> None:
+    with pytest.raises(ValueError, match="normal"):
+        Contact(points=np.zeros((1, 3)), normal=np.array([0.0, 0.0, 2.0]))
+    with pytest.raises(ValueError, match="points"):
+        Contact(points=np.zeros((2, 2)), normal=np.array([0.0, 0.0, 1.0]))
+    with pytest.raises(ValueError, match="mu"):
+        Contact(points=np.zeros((1, 3)), normal=np.array([0.0, 0.0, 1.0]), mu=-1.0)
+    with pytest.raises(ValueError, match="mass"):
+        ContactPhase([], mass=0.0)
+    with pytest.raises(ValueError, match="com"):
+        trajectory.is_static_equilibrium(ContactPhase([]), np.zeros(2))

@@ -1,0 +1,75 @@
+"""Gecko trajectory: static equilibrium, transition points and 2PAC COM trajectories.
+
+Pure maths over float64 numpy arrays (SI units, world frame z up, gravity (0, 0, -9.81)).
+"""
+
+from trajectory.bezier import BezierCurve, PiecewiseBezier, bernstein, concatenate
+from trajectory.com import (
+    BoundaryState,
+    ComTrajectory,
+    PhaseReport,
+    attractor_curve,
+    multi_attractor_curve,
+    plan_com_trajectory,
+    polyline_parametrisation,
+    quasi_static_polyline,
+    validate_dynamics,
+    weierstrass_curve,
+)
+from trajectory.contacts import Contact, ContactPhase, friction_rays, tangent_basis
+from trajectory.equilibrium import (
+    EquilibriumMargin,
+    equilibrium_halfspaces,
+    equilibrium_margin,
+    equilibrium_polygon,
+    equilibrium_polytope,
+    is_static_equilibrium,
+)
+from trajectory.kinematics import EffectorConstraint, kinematic_polytope, to_world
+from trajectory.polytope import Halfspaces, stack
+from trajectory.transition import (
+    TransitionCost,
+    TransitionPoint,
+    check_transition_point,
+    transition_point,
+    transition_qp,
+    transition_qp_generators,
+)
+
+__all__ = [
+    "BezierCurve",
+    "BoundaryState",
+    "ComTrajectory",
+    "Contact",
+    "ContactPhase",
+    "EffectorConstraint",
+    "EquilibriumMargin",
+    "Halfspaces",
+    "PhaseReport",
+    "PiecewiseBezier",
+    "TransitionCost",
+    "TransitionPoint",
+    "attractor_curve",
+    "bernstein",
+    "check_transition_point",
+    "concatenate",
+    "equilibrium_halfspaces",
+    "equilibrium_margin",
+    "equilibrium_polygon",
+    "equilibrium_polytope",
+    "friction_rays",
+    "is_static_equilibrium",
+    "kinematic_polytope",
+    "multi_attractor_curve",
+    "plan_com_trajectory",
+    "polyline_parametrisation",
+    "quasi_static_polyline",
+    "stack",
+    "tangent_basis",
+    "to_world",
+    "transition_point",
+    "transition_qp",
+    "transition_qp_generators",
+    "validate_dynamics",
+    "weierstrass_curve",
+]
