@@ -25,8 +25,9 @@ def main() -> None:
     args = parser.parse_args()
     params = OfflineParams()
     print(f"default sizes: {params}")
-    print(f"{'character':<10} {'build median (s)':>17} {'load median (ms)':>17} "
-          f"{'load max (ms)':>14}")
+    print(
+        f"{'character':<10} {'build median (s)':>17} {'load median (ms)':>17} {'load max (ms)':>14}"
+    )
     for cid in args.character or builtin_character_ids():
         character = get_character(cid)
         builds = []
@@ -38,12 +39,13 @@ def main() -> None:
             loads = []
             for _ in range(args.repeat_load):
                 start = time.perf_counter()
-                data = load_offline_data(character, Path(tmp) / "0", seed=args.seed,
-                                         params=params)
+                data = load_offline_data(character, Path(tmp) / "0", seed=args.seed, params=params)
                 loads.append(time.perf_counter() - start)
                 assert not data.built
-        print(f"{cid:<10} {statistics.median(builds):>17.2f} "
-              f"{statistics.median(loads) * 1e3:>17.1f} {max(loads) * 1e3:>14.1f}")
+        print(
+            f"{cid:<10} {statistics.median(builds):>17.2f} "
+            f"{statistics.median(loads) * 1e3:>17.1f} {max(loads) * 1e3:>14.1f}"
+        )
 
 
 if __name__ == "__main__":

@@ -10,17 +10,11 @@ from fastapi import FastAPI
 
 from service import __version__
 from service.errors import install_error_handlers
-from service.registry import Registry
 from service.routes import characters, health, scenes
 from service.settings import Settings, get_settings
+from service.workers import WorkerPool, registry_for
 
 log = logging.getLogger("gecko")
-
-
-def _character_ids(settings: Settings) -> list[str] | None:
-    if settings.characters.strip() in ("", "auto"):
-        return None
-    return [part.strip() for part in settings.characters.split(",") if part.strip()]
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
@@ -29,15 +23,15 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        app.state.registry = Registry(
-            cache_dir=settings.cache_path,
-            scenes_dir=settings.scenes_path,
-            character_ids=_character_ids(settings),
-            build_missing_data=settings.build_missing_data,
-            data_seed=settings.data_seed,
-        )
-        log.info("gecko ready: %d characters", len(app.state.registry.characters))
-        yield
+        registry = registry_for(settings)
+        registry.preload()
+        app.state.registry = registry
+        app.state.pool = WorkerPool(settings)
+        log.info("gecko ready: %d characters", len(registry.characters))
+        try:
+            yield
+        finally:
+            app.state.pool.shutdown()
 
     app = FastAPI(
         title="Gecko",

@@ -5,10 +5,14 @@ from __future__ import annotations
 import numpy as np
 
 from planner.character import Character
+from planner.contact.state import ContactState, LimbContact
+from planner.kinematics import frame_placement
+from planner.motion import ComSegment, Keyframe, Phase
 from planner.poses import matrix_to_quaternion
 from planner.scene import Scene, Surface, SurfaceKind
 from planner.shapes import Box, Capsule, ConvexPolytope, Shape
 from service import schemas
+from service.errors import ApiError
 
 
 def _vec(values: np.ndarray) -> tuple[float, float, float]:
@@ -110,4 +114,134 @@ def scene_detail(scene: Scene, builtin: bool) -> schemas.SceneDetail:
         bounds=(_vec(scene.bounds[0]), _vec(scene.bounds[1])),
         triangle_count=int(scene.triangle_count),
         surfaces=[surface_info(surface) for surface in scene.surfaces],
+    )
+
+
+# -- planning states, phases, keyframes -----------------------------------------------------
+
+
+def q_from_configuration(
+    character: Character, configuration: schemas.ConfigurationIn, field: str
+) -> np.ndarray:
+    """Pinocchio q from a request configuration; unknown joints and limit violations are 422.
+
+    Joints left out take their reference (standing) value.
+    """
+    unknown = sorted(set(configuration.joints) - set(character.joint_names))
+    if unknown:
+        raise ApiError(422, "invalid_request", f"unknown joints {unknown[:5]}", f"{field}.joints")
+    q = np.array(character.q_ref, dtype=np.float64)
+    q[:3] = configuration.root.position
+    q[3:7] = configuration.root.orientation
+    for index, name in enumerate(character.joint_names):
+        if name in configuration.joints:
+            value = configuration.joints[name]
+            low, high = character.lower[7 + index], character.upper[7 + index]
+            if not low - 1e-6 <= value <= high + 1e-6:
+                raise ApiError(
+                    422,
+                    "invalid_request",
+                    f"joint {name} = {value} outside its limits [{low:.4g}, {high:.4g}]",
+                    f"{field}.joints.{name}",
+                )
+            q[7 + index] = value
+    return q
+
+
+def contact_from_limb(
+    character: Character,
+    q: np.ndarray,
+    limb_name: str,
+    *,
+    normal: np.ndarray | None = None,
+    mu: float | None = None,
+    surface: int = -1,
+) -> LimbContact:
+    """A limb's contact where configuration ``q`` puts its effector."""
+    limb = character.limb(limb_name)
+    placement = frame_placement(character.model, q, limb.effector_frame)
+    points = np.atleast_2d(limb.contact_points()) @ placement[:3, :3].T + placement[:3, 3]
+    world_normal = placement[:3, :3] @ limb.normal if normal is None else normal
+    return LimbContact(
+        limb=limb.name,
+        placement=placement,
+        points=points,
+        normal=world_normal,
+        mu=float(limb.mu if mu is None else mu),
+        surface=surface,
+    )
+
+
+def state_from_request(character: Character, state: schemas.StateIn, field: str) -> ContactState:
+    """The domain contact state of a request (placements recomputed from the configuration)."""
+    q = q_from_configuration(character, state.configuration, f"{field}.configuration")
+    limb_names = {limb.name for limb in character.limbs}
+    contacts = []
+    seen: set[str] = set()
+    for index, contact in enumerate(state.contacts):
+        where = f"{field}.contacts.{index}.limb"
+        if contact.limb not in limb_names:
+            raise ApiError(
+                422,
+                "invalid_request",
+                f"unknown limb '{contact.limb}'; expected one of {sorted(limb_names)}",
+                where,
+            )
+        if contact.limb in seen:
+            raise ApiError(422, "invalid_request", f"limb '{contact.limb}' listed twice", where)
+        seen.add(contact.limb)
+        normal = None if contact.normal is None else np.asarray(contact.normal, dtype=np.float64)
+        if normal is not None and np.linalg.norm(normal) < 1e-9:
+            raise ApiError(422, "invalid_request", "contact normal must be non-zero", where)
+        contacts.append(
+            contact_from_limb(
+                character,
+                q,
+                contact.limb,
+                normal=normal,
+                mu=contact.mu,
+                surface=-1 if contact.surface is None else contact.surface,
+            )
+        )
+    return ContactState(q=q, contacts=tuple(contacts))
+
+
+def contact_out(contact: LimbContact) -> schemas.ContactOut:
+    return schemas.ContactOut(
+        limb=contact.limb,
+        points=[_vec(p) for p in contact.points],
+        normal=_vec(contact.normal),
+        mu=float(contact.mu),
+        surface=int(contact.surface),
+    )
+
+
+def state_out(character: Character, state: ContactState) -> schemas.StateOut:
+    return schemas.StateOut(
+        configuration=configuration_from_q(character, state.q),
+        contacts=[contact_out(c) for c in state.contacts],
+    )
+
+
+def phase_out(phase: Phase) -> schemas.PhaseOut:
+    return schemas.PhaseOut(
+        t0=float(phase.t0), t1=float(phase.t1), contacts=[contact_out(c) for c in phase.contacts]
+    )
+
+
+def com_segment_out(segment: ComSegment) -> schemas.ComSegmentOut:
+    return schemas.ComSegmentOut(
+        t0=float(segment.t0),
+        t1=float(segment.t1),
+        control_points=[_vec(p) for p in segment.control_points],
+    )
+
+
+def keyframe_out(character: Character, keyframe: Keyframe) -> schemas.KeyframeOut:
+    configuration = configuration_from_q(character, keyframe.q)
+    return schemas.KeyframeOut(
+        t=float(keyframe.t),
+        root=configuration.root,
+        joints=configuration.joints,
+        contacts=list(keyframe.contacts),
     )

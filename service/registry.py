@@ -55,20 +55,45 @@ class Registry:
         self.scenes_dir = scenes_dir
         self.cache_dir.mkdir(parents=True, exist_ok=True)
         self.scenes_dir.mkdir(parents=True, exist_ok=True)
-        self._lock = threading.Lock()
+        self._lock = threading.RLock()
         self._scenes: dict[str, Scene] = {}
-        self.characters: dict[str, CharacterEntry] = {}
-        ids = character_ids if character_ids is not None else default_character_ids()
-        for character_id in ids:
-            character = load_character(character_spec_path(character_id))
-            data = load_offline_data(
-                character,
-                cache_dir,
-                seed=data_seed,
-                build_if_missing=build_missing_data,
-                progress=False,
-            )
-            self.characters[character_id] = CharacterEntry(character, data)
+        self._characters: dict[str, CharacterEntry] = {}
+        self._build_missing_data = build_missing_data
+        self._data_seed = data_seed
+        self.character_ids: tuple[str, ...] = tuple(
+            character_ids if character_ids is not None else default_character_ids()
+        )
+
+    # -- characters ---------------------------------------------------------------------------
+
+    def preload(self) -> None:
+        """Load every served character and its offline data now (the service does at start)."""
+        for character_id in self.character_ids:
+            self.get_character(character_id)
+
+    @property
+    def characters(self) -> dict[str, CharacterEntry]:
+        """Every served character, loading those not loaded yet."""
+        return {cid: entry for cid in self.character_ids if (entry := self.get_character(cid))}
+
+    def get_character(self, character_id: str) -> CharacterEntry | None:
+        """The served character with this id and its offline data; None if not served."""
+        if character_id not in self.character_ids:
+            return None
+        with self._lock:
+            entry = self._characters.get(character_id)
+            if entry is None:
+                character = load_character(character_spec_path(character_id))
+                data = load_offline_data(
+                    character,
+                    self.cache_dir,
+                    seed=self._data_seed,
+                    build_if_missing=self._build_missing_data,
+                    progress=False,
+                )
+                entry = CharacterEntry(character, data)
+                self._characters[character_id] = entry
+            return entry
 
     # -- scenes -------------------------------------------------------------------------------
 
@@ -121,7 +146,11 @@ class Registry:
             vertices=np.asarray(scene.vertices, dtype=np.float64),
             faces=np.asarray(scene.faces, dtype=np.int64),
         )
-        _atomic_write_text(self.scenes_dir / f"{scene.id}.json", json.dumps({"name": name}))
+        try:
+            _atomic_write_text(self.scenes_dir / f"{scene.id}.json", json.dumps({"name": name}))
+        except BaseException:
+            (self.scenes_dir / f"{scene.id}.npz").unlink(missing_ok=True)
+            raise
         with self._lock:
             self._scenes[scene.id] = scene
         return scene

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from typing import Literal
+import math
+from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 Vector3 = tuple[float, float, float]
 Quaternion = tuple[float, float, float, float]
@@ -95,3 +96,248 @@ class SceneDetail(BaseModel):
     bounds: tuple[Vector3, Vector3] = Field(description="axis-aligned bounds [min, max], metres")
     triangle_count: int
     surfaces: list[SurfaceInfo]
+
+
+# -- planning requests and responses --------------------------------------------------------
+
+MAX_TIME_BUDGET_S = 60.0
+MAX_COORDINATE = 10_000.0
+MAX_SEED = 2**63 - 1
+
+Coordinate = Annotated[float, Field(ge=-MAX_COORDINATE, le=MAX_COORDINATE)]
+Point3 = tuple[Coordinate, Coordinate, Coordinate]
+Seed = Annotated[int, Field(ge=0, le=MAX_SEED, description="replays the answer bit for bit")]
+TimeBudget = Annotated[
+    float, Field(gt=0, le=MAX_TIME_BUDGET_S, description="seconds of planning, at most 60")
+]
+Rate = Annotated[float, Field(gt=0, le=240, description="keyframes per second")]
+
+
+class PoseIn(BaseModel):
+    """A root pose: position (m, world) and orientation [x, y, z, w] (normalised on input)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    position: Point3
+    orientation: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 1.0)
+
+    @field_validator("orientation")
+    @classmethod
+    def _unit(cls, value: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
+        norm = math.sqrt(sum(v * v for v in value))
+        if not math.isfinite(norm) or norm < 1e-9:
+            raise ValueError("orientation must be a finite, non-zero quaternion [x, y, z, w]")
+        x, y, z, w = (v / norm for v in value)
+        return (x, y, z, w)
+
+
+class EndpointIn(BaseModel):
+    """Where a motion starts or ends: a root pose, or ``stand_at`` a point on the scene."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    position: Point3 | None = None
+    orientation: tuple[float, float, float, float] | None = None
+    stand_at: Point3 | None = Field(
+        default=None, description="a point on the scene; the service finds a standing state"
+    )
+
+    @model_validator(mode="after")
+    def _one_kind(self) -> EndpointIn:
+        if (self.position is None) == (self.stand_at is None):
+            raise ValueError("give exactly one of 'position' (with 'orientation') or 'stand_at'")
+        if self.orientation is not None:
+            PoseIn(position=(0.0, 0.0, 0.0), orientation=self.orientation)
+        return self
+
+
+class ContactOut(BaseModel):
+    limb: str
+    points: list[Vector3]
+    normal: Vector3
+    mu: float
+    surface: int
+
+
+class ContactIn(BaseModel):
+    """A limb in contact; its placement is recomputed from the configuration."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    limb: str = Field(max_length=100)
+    normal: Point3 | None = None
+    mu: float | None = Field(default=None, gt=0, le=5)
+    surface: int | None = Field(default=None, ge=-1, le=10_000_000)
+
+
+class ConfigurationIn(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    root: PoseIn
+    joints: dict[str, Annotated[float, Field(ge=-100, le=100)]] = Field(max_length=500)
+
+
+class StateIn(BaseModel):
+    """A whole-body configuration and the limbs in contact (as an earlier answer returned)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    configuration: ConfigurationIn
+    contacts: list[ContactIn] = Field(max_length=16)
+
+
+class StateOut(BaseModel):
+    configuration: Configuration
+    contacts: list[ContactOut]
+
+
+class PhaseOut(BaseModel):
+    t0: float
+    t1: float
+    contacts: list[ContactOut]
+
+
+class ComSegmentOut(BaseModel):
+    t0: float
+    t1: float
+    control_points: list[Vector3]
+
+
+class KeyframeOut(BaseModel):
+    t: float
+    root: RootPose
+    joints: dict[str, float]
+    contacts: list[str]
+
+
+class StepActionIn(BaseModel):
+    """One Twister move: create or break a limb's contact, or let the game choose ('auto')."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    kind: Literal["create", "break", "auto"]
+    limb: str | None = Field(default=None, max_length=100)
+    surface: int | None = Field(default=None, ge=0, le=10_000_000)
+    target: Point3 | None = None
+
+    @model_validator(mode="after")
+    def _limb_needed(self) -> StepActionIn:
+        if self.kind in ("create", "break") and self.limb is None:
+            raise ValueError(f"action '{self.kind}' needs a 'limb'")
+        return self
+
+
+class OtherCharacterIn(BaseModel):
+    """Another character on the mat, posed as given; an obstacle for this step."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    character: str = Field(max_length=100)
+    configuration: ConfigurationIn
+
+
+class TwisterStepRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    character: str = Field(max_length=100)
+    scene: str = Field(max_length=128)
+    state: StateIn | None = Field(default=None, description="current state; or use stand_at")
+    stand_at: Point3 | None = Field(default=None, description="start standing at this point")
+    action: StepActionIn
+    others: list[OtherCharacterIn] = Field(default_factory=list, max_length=8)
+    seed: Seed | None = None
+    time_budget_s: TimeBudget = 5.0
+    rate: Rate = 30.0
+
+    @model_validator(mode="after")
+    def _state_or_stand(self) -> TwisterStepRequest:
+        if (self.state is None) == (self.stand_at is None):
+            raise ValueError("give exactly one of 'state' or 'stand_at'")
+        return self
+
+
+class FailureOut(BaseModel):
+    reason: str
+    message: str
+    limb: str | None = None
+
+
+class TwisterStepResponse(BaseModel):
+    status: str
+    seed: int
+    state: StateOut
+    phases: list[PhaseOut]
+    com: list[ComSegmentOut]
+    keyframes: list[KeyframeOut]
+    failure: FailureOut | None = None
+    report: dict[str, object]
+    timings: dict[str, float]
+
+
+class RoadmapRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    character: str = Field(max_length=100)
+    scene: str = Field(max_length=128)
+    mu: float = Field(default=1.0, gt=0, le=5)
+    vmax_takeoff: float = Field(default=6.0, gt=0, le=50, description="m/s")
+    vmax_landing: float = Field(default=8.0, gt=0, le=50, description="m/s")
+    nodes: int = Field(default=500, ge=2, le=10_000)
+    seed: Seed = 0
+
+
+class RoadmapStatus(BaseModel):
+    id: str
+    status: Literal["queued", "running", "done", "failed", "interrupted"]
+    progress: float = Field(ge=0, le=1)
+    nodes: int = 0
+    edges: int = 0
+    message: str = ""
+    seconds: float = 0.0
+
+
+class JumpContactOut(BaseModel):
+    limb: str
+    point: Vector3
+    normal: Vector3
+    mu: float
+
+
+class JumpEndOut(BaseModel):
+    position: Vector3
+    velocity: Vector3
+    contacts: list[JumpContactOut]
+
+
+class JumpOut(BaseModel):
+    takeoff: JumpEndOut
+    landing: JumpEndOut
+    apex: Vector3
+    duration: float
+
+
+class JumpRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    character: str = Field(max_length=100)
+    scene: str = Field(max_length=128)
+    start: EndpointIn
+    goal: EndpointIn
+    roadmap: str | None = Field(default=None, max_length=128)
+    mu: float = Field(default=1.0, gt=0, le=5)
+    vmax_takeoff: float = Field(default=6.0, gt=0, le=50)
+    vmax_landing: float = Field(default=8.0, gt=0, le=50)
+    nodes: int = Field(default=300, ge=2, le=10_000, description="roadmap size when building")
+    seed: Seed | None = None
+    time_budget_s: TimeBudget = 10.0
+    rate: Rate = 30.0
+
+
+class JumpResponse(BaseModel):
+    status: str
+    seed: int
+    jumps: list[JumpOut]
+    keyframes: list[KeyframeOut]
+    roadmap: str | None = None
+    message: str = ""
+    timings: dict[str, float]

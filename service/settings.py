@@ -33,13 +33,20 @@ class Settings(BaseSettings):
     )
     max_upload_bytes: int = Field(default=50 * 1024 * 1024, gt=0)
     max_triangles: int = Field(default=2_000_000, gt=0)
-    worker_processes: int = Field(default=2, ge=1, le=64)
+    worker_processes: int = Field(
+        default=2, ge=1, le=64, description="planning processes per service worker"
+    )
     data_seed: int = Field(default=0, ge=0)
 
     @property
     def cache_path(self) -> Path:
         """Offline data and collision caches."""
         return self.cache_dir or self.home / "cache"
+
+    @property
+    def roadmaps_path(self) -> Path:
+        """Jump roadmaps and their build status files."""
+        return self.home / "roadmaps"
 
     @property
     def scenes_path(self) -> Path:

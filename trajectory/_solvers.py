@@ -10,13 +10,14 @@ from dataclasses import dataclass
 
 import daqp
 import numpy as np
+from numpy.typing import NDArray
 
 from trajectory._types import FloatArray
 
 INF = 1e30
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, eq=False)
 class QpResult:
     """x (n,) solution (nan when not solved), cost, status (1 optimal), dual (m,)."""
 
@@ -62,3 +63,20 @@ def solve(
     if flag not in (1, 2):
         xs = np.full(f.shape[0], np.nan)
     return QpResult(xs, float(fval), int(flag), np.asarray(info["lam"], dtype=np.float64))
+
+
+def solve_raw(
+    H: FloatArray,
+    f: FloatArray,
+    A: FloatArray,
+    upper: FloatArray,
+    lower: FloatArray,
+    sense: NDArray[np.int32],
+    **settings: float,
+) -> tuple[FloatArray, float, int, FloatArray]:
+    """Hot-path variant of ``solve``: contiguous float64 inputs prepared by the caller.
+
+    Returns (x, cost, status, dual) straight from daqp (x is not reset on failure).
+    """
+    x, fval, flag, info = daqp.solve(H, f, A, upper, lower, sense, **settings)
+    return x, float(fval), int(flag), info["lam"]

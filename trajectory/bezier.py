@@ -31,7 +31,7 @@ def bernstein(n: int, s: FloatArray) -> FloatArray:
     return out
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, eq=False)
 class BezierCurve:
     """c(t) = sum_k B_k^n((t - t0) / (t1 - t0)) P_k. control_points (n + 1, d); t0 < t1, s."""
 
@@ -129,7 +129,7 @@ class BezierCurve:
         return BezierCurve(self.control_points, t0, t1)
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, eq=False)
 class PiecewiseBezier:
     """Consecutive Bezier segments; segment i ends at the time segment i + 1 starts."""
 

@@ -22,6 +22,7 @@ from trajectory.polytope import Halfspaces, stack
 from trajectory.transition import (
     TransitionCost,
     TransitionPoint,
+    check_transition_point,
     transition_point,
     transition_qp_generators,
 )
@@ -30,7 +31,7 @@ SMOOTHSTEP_PEAK_ACC = 10.0 / math.sqrt(3.0)
 """Peak |s''| of the quintic smoothstep 10 t^3 - 15 t^4 + 6 t^5 on [0, 1]."""
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, eq=False)
 class BoundaryState:
     """COM position (3,) m, velocity (3,) m/s and acceleration (3,) m/s^2, world frame."""
 
@@ -207,7 +208,7 @@ class PhaseReport:
     worst_violation: float
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, eq=False)
 class ComTrajectory:
     """A planned COM trajectory.
 
@@ -293,6 +294,8 @@ def plan_com_trajectory(
     min_window: float = 1.0,
     max_acceleration: float = 0.05,
     n_checks: int = 10,
+    duration: float | None = None,
+    user_transitions: Sequence[FloatArray | None] | None = None,
 ) -> ComTrajectory:
     """Phases + start COM (+ end COM) -> COM trajectory with its transitions and report.
 
@@ -300,7 +303,10 @@ def plan_com_trajectory(
     attractor curves over windows of up to three phases joined with continuous velocity
     (sliding window, section 6.4.1); "quasi_static" the rest-to-rest polyline. Window
     durations are seconds_per_metre times the control polygon length (at least
-    min_window). n_checks samples per phase for the dynamic report (0 skips it).
+    min_window), or the whole trajectory is uniformly rescaled to ``duration`` seconds when
+    given. n_checks samples per phase for the dynamic report (0 skips it).
+    user_transitions: one entry per phase change, a (3,) point placed by the user (checked
+    for feasibility against both phases, never moved) or None to compute it.
     formulation "polytope" solves Eq. 6 on the equilibrium polytopes of both phases (any
     cost); "generators" solves Eq. 13 with the generator weights of the phase with fewer
     contact points (no polytope is computed; distance cost only), which is faster and
@@ -312,6 +318,8 @@ def plan_com_trajectory(
         raise ValueError("phases: at least one contact phase is needed")
     if method not in ("2pac", "quasi_static"):
         raise ValueError(f"method: expected '2pac' or 'quasi_static', got {method!r}")
+    if duration is not None and not (np.isfinite(duration) and duration > 0):
+        raise ValueError(f"duration: must be positive and finite, got {duration}")
     if formulation not in ("auto", "polytope", "generators"):
         raise ValueError(
             f"formulation: expected 'auto', 'polytope' or 'generators', got {formulation!r}"
@@ -336,11 +344,21 @@ def plan_com_trajectory(
     else:
         eqs = [free] * len(phases)
 
+    if user_transitions is not None and len(user_transitions) != len(phases) - 1:
+        raise ValueError("user_transitions: one entry per phase change is needed")
     transitions: list[TransitionPoint] = []
     c_prev = start
     for j in range(len(phases) - 1):
         tgt = end if (end is not None and j == len(phases) - 2) else None
-        if formulation == "polytope":
+        placed = None if user_transitions is None else user_transitions[j]
+        if placed is not None:
+            pair = [equilibrium_halfspaces(phases[j]), equilibrium_halfspaces(phases[j + 1])]
+            tp = check_transition_point(
+                as_float_array(placed, (3,), f"user_transitions[{j}]"),
+                pair,
+                [kins[j], kins[j + 1]],
+            )
+        elif formulation == "polytope":
             tp = transition_point(
                 eqs[j],
                 eqs[j + 1],
@@ -371,6 +389,12 @@ def plan_com_trajectory(
         curve, phase_times = _sliding_window(
             phases, eqs, kins, start, tpts, final, seconds_per_metre, min_window
         )
+    if duration is not None:
+        scale = duration / (curve.t1 - curve.t0)
+        curve = PiecewiseBezier(
+            tuple(seg.retimed(seg.t0 * scale, seg.t1 * scale) for seg in curve.segments)
+        )
+        phase_times = phase_times * scale
     reports = validate_dynamics(curve, phases, phase_times, n_checks) if n_checks > 0 else ()
     return ComTrajectory(curve, tuple(transitions), phase_times, reports, method)
 

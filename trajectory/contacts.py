@@ -15,7 +15,7 @@ import numpy as np
 from trajectory._types import GRAVITY, FloatArray, as_float_array
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, eq=False)
 class Contact:
     """A contact with the environment.
 
@@ -53,7 +53,7 @@ class Contact:
         object.__setattr__(self, "n_rays", int(self.n_rays))
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, eq=False)
 class ContactPhase:
     """A set of simultaneously active contacts and the character mass (kg)."""
 

@@ -63,6 +63,8 @@ class _Support:
         self.A = np.hstack([E.T, np.ones((m, 1))])
         self.upper = np.full(5 + m, _solvers.INF)
         self.lower = np.concatenate([np.full(4, -_solvers.INF), np.zeros(1), np.zeros(m)])
+        self.sense = np.zeros(5 + m, dtype=np.int32)
+        self.LT = np.ascontiguousarray(L.T)
         self.calls = 0
         self.fallbacks = 0
         self.last_bound_active = False
@@ -70,25 +72,25 @@ class _Support:
     def __call__(self, theta: FloatArray) -> FloatArray | None:
         """Extreme point (2,) in direction theta (2,), or None when the region is empty."""
         self.calls += 1
-        rhs = self.L.T @ theta
+        rhs = self.LT @ theta
         self.lower[5:] = rhs
-        res = _solvers.solve(self.H, self.f, self.A, self.upper, self.lower, eps_prox=0.0)
-        if res.ok:
-            beta = -res.dual[5:]
+        x, _, flag, lam = _solvers.solve_raw(
+            self.H, self.f, self.A, self.upper, self.lower, self.sense, eps_prox=0.0
+        )
+        if flag == 1:
+            beta = -lam[5:]
             out: FloatArray = self.L @ beta
             value = float(theta @ out)
-            residual = float(np.linalg.norm(self.E @ beta - _UNIT_WEIGHT))
-            gap = abs(float(self.f @ res.x) - value)
-            slack = float((self.A @ res.x - rhs).min())
+            res = self.E @ beta - _UNIT_WEIGHT
             if (
-                residual <= 1e-7
-                and float(beta.min()) >= -1e-7
-                and float(beta.sum()) <= self.bound * (1.0 + 1e-9)
-                and res.x[4] >= -1e-6
-                and slack >= -1e-6
-                and gap <= 1e-7 * max(1.0, abs(value))
+                float(res @ res) <= 1e-14
+                and beta.min() >= -1e-7
+                and beta.sum() <= self.bound * (1.0 + 1e-9)
+                and x[4] >= -1e-6
+                and (self.A @ x - rhs).min() >= -1e-6
+                and abs(float(self.f @ x) - value) <= 1e-7 * max(1.0, abs(value))
             ):
-                self.last_bound_active = bool(res.x[4] > 1e-9)
+                self.last_bound_active = bool(x[4] > 1e-9)
                 return out
         return self._fallback(theta)
 
@@ -319,7 +321,7 @@ def is_static_equilibrium(phase: ContactPhase, com: FloatArray) -> bool | BoolAr
     return np.asarray(inside, dtype=bool)
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, eq=False)
 class EquilibriumMargin:
     """Result of the robustness LP (Eq. 12, Del Prete et al. 2016).
 
@@ -382,10 +384,11 @@ def _margin_dual(G: FloatArray, w: FloatArray, weight: float) -> EquilibriumMarg
     if not res.ok:
         return None
     lam = -res.dual
-    b0 = float(res.x @ ws)
+    b0 = float(lam[m])
     weights = lam[:m] + b0
     residual = float(np.linalg.norm(G.T @ weights - ws))
-    if residual > 1e-7 or float(lam[:m].min()) < -1e-7:
+    gap = abs(b0 - float(res.x @ ws))
+    if residual > 1e-6 or gap > 1e-6 or float(lam[:m].min()) < -1e-7:
         return None
     if float((G @ res.x).min()) < -1e-6:
         return None

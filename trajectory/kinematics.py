@@ -11,7 +11,7 @@ from trajectory._types import FloatArray, as_float_array
 from trajectory.polytope import Halfspaces, stack
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, eq=False)
 class EffectorConstraint:
     """COM half-spaces of one effector: A (m, 3) @ c_effector <= b (m,), effector frame.
 

@@ -10,7 +10,7 @@ import numpy as np
 from trajectory._types import TOL, BoolArray, FloatArray, as_float_array
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, eq=False)
 class Halfspaces:
     """The set {x : A @ x <= b}. A (m, d), b (m,). m = 0 is the whole space."""
 

@@ -48,7 +48,7 @@ class TransitionCost:
             raise ValueError(f"strength: must be finite and >= 0, got {self.strength}")
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, eq=False)
 class TransitionPoint:
     """point (3,) world COM, metres; slack >= 0 (m for Eq. 6 rows, N for Eq. 13);
     feasible: a quasi-static transition exists; kinematic_slack > 0 when even the kinematic

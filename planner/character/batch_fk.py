@@ -22,8 +22,11 @@ from numpy.typing import NDArray
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
-_AXES = {"JointModelRX": (1.0, 0.0, 0.0), "JointModelRY": (0.0, 1.0, 0.0),
-         "JointModelRZ": (0.0, 0.0, 1.0)}
+_AXES = {
+    "JointModelRX": (1.0, 0.0, 0.0),
+    "JointModelRY": (0.0, 1.0, 0.0),
+    "JointModelRZ": (0.0, 0.0, 1.0),
+}
 
 
 def _ro(array: Any, dtype: Any = np.float64) -> Any:
@@ -86,8 +89,15 @@ class TreeKinematics:
                         "bounded revolute joints are supported)"
                     )
                 q_col[j] = joint.idx_q - 7
-        return TreeKinematics(_ro(parents, np.int64), _ro(rot), _ro(trans), _ro(axes),
-                              _ro(q_col, np.int64), _ro(masses), _ro(levers))
+        return TreeKinematics(
+            _ro(parents, np.int64),
+            _ro(rot),
+            _ro(trans),
+            _ro(axes),
+            _ro(q_col, np.int64),
+            _ro(masses),
+            _ro(levers),
+        )
 
 
 def _rotations(axis: FloatArray, angles: FloatArray) -> FloatArray:
@@ -98,8 +108,7 @@ def _rotations(axis: FloatArray, angles: FloatArray) -> FloatArray:
     return np.asarray(np.eye(3) + s * k + c * (k @ k), dtype=np.float64)
 
 
-def _placed_rotations(placement: FloatArray, axis: FloatArray, angles: FloatArray
-                      ) -> FloatArray:
+def _placed_rotations(placement: FloatArray, axis: FloatArray, angles: FloatArray) -> FloatArray:
     """(N, 3, 3) products placement @ Rot(axis, angle): P + sin P K + (1 - cos) P K^2."""
     k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
     pk = placement @ k
@@ -166,7 +175,10 @@ def center_of_mass(kin: TreeKinematics, rot: FloatArray, trans: FloatArray) -> F
 
 
 def frame_jacobian(
-    kin: TreeKinematics, rot: FloatArray, trans: FloatArray, chain: IntArray,
+    kin: TreeKinematics,
+    rot: FloatArray,
+    trans: FloatArray,
+    chain: IntArray,
     point: FloatArray,
 ) -> FloatArray:
     """(N, 6, len(chain)) Jacobian [linear; angular] of a point of a frame, root-frame axes.

@@ -120,12 +120,17 @@ def _inner_capsule(geom: Any) -> tuple[FloatArray, FloatArray, float]:
 
 def _apply(rot: FloatArray, vec: FloatArray) -> FloatArray:
     """(N, G, 3) products of rotations (N, G, 3, 3) with per-geometry vectors (G, 3)."""
-    return np.asarray(rot[..., 0] * vec[:, 0, None] + rot[..., 1] * vec[:, 1, None]
-                      + rot[..., 2] * vec[:, 2, None], dtype=np.float64)
+    return np.asarray(
+        rot[..., 0] * vec[:, 0, None]
+        + rot[..., 1] * vec[:, 1, None]
+        + rot[..., 2] * vec[:, 2, None],
+        dtype=np.float64,
+    )
 
 
-def _segment_distances(p1: FloatArray, q1: FloatArray, p2: FloatArray, q2: FloatArray
-                       ) -> FloatArray:
+def _segment_distances(
+    p1: FloatArray, q1: FloatArray, p2: FloatArray, q2: FloatArray
+) -> FloatArray:
     """(...,) distances between segments [p1, q1] and [p2, q2] given as (..., 3) arrays."""
     eps = 1e-12
     d1, d2, r = q1 - p1, q2 - p2, p1 - p2
@@ -201,25 +206,48 @@ class SelfCollisionChecker:
             inner_r.append(in_r)
         pairs = np.array([[p.first, p.second] for p in gmodel.collisionPairs], dtype=np.int64)
         return SelfCollisionChecker(
-            tuple(shapes), np.array(joints, dtype=np.int64), np.array(rots).reshape(-1, 3, 3),
-            np.array(trans).reshape(-1, 3), np.array(caps_a).reshape(-1, 3),
-            np.array(caps_b).reshape(-1, 3), np.array(caps_r),
-            np.array(halves).reshape(-1, 3), np.array(box_ts).reshape(-1, 3),
-            np.array(inner_a).reshape(-1, 3), np.array(inner_b).reshape(-1, 3),
-            np.array(inner_r), pairs.reshape(-1, 2),
+            tuple(shapes),
+            np.array(joints, dtype=np.int64),
+            np.array(rots).reshape(-1, 3, 3),
+            np.array(trans).reshape(-1, 3),
+            np.array(caps_a).reshape(-1, 3),
+            np.array(caps_b).reshape(-1, 3),
+            np.array(caps_r),
+            np.array(halves).reshape(-1, 3),
+            np.array(box_ts).reshape(-1, 3),
+            np.array(inner_a).reshape(-1, 3),
+            np.array(inner_b).reshape(-1, 3),
+            np.array(inner_r),
+            pairs.reshape(-1, 2),
         )
 
     def subset(self, pair_mask: NDArray[np.bool_]) -> SelfCollisionChecker:
         """The same checker restricted to the pairs selected by ``pair_mask`` (p,)."""
         return SelfCollisionChecker(
-            self.shapes, self.joint, self.placement_R, self.placement_t, self.cap_a,
-            self.cap_b, self.cap_r, self.box_half, self.box_t, self.inner_a, self.inner_b,
-            self.inner_r, self.pairs[pair_mask],
+            self.shapes,
+            self.joint,
+            self.placement_R,
+            self.placement_t,
+            self.cap_a,
+            self.cap_b,
+            self.cap_r,
+            self.box_half,
+            self.box_t,
+            self.inner_a,
+            self.inner_b,
+            self.inner_r,
+            self.pairs[pair_mask],
         )
 
     def _box_separates(
-        self, rot: FloatArray, trans: FloatArray, samples: IntArray, box: IntArray,
-        other: IntArray, ends_a: FloatArray, ends_b: FloatArray,
+        self,
+        rot: FloatArray,
+        trans: FloatArray,
+        samples: IntArray,
+        box: IntArray,
+        other: IntArray,
+        ends_a: FloatArray,
+        ends_b: FloatArray,
     ) -> NDArray[np.bool_]:
         """(m,) True where a face axis of geometry ``box`` separates it from the bounding
         capsule of ``other`` (m candidate (sample, pair) rows)."""
@@ -230,9 +258,13 @@ class SelfCollisionChecker:
         s, g, o = samples[is_box], box[is_box], other[is_box]
         r_joint = rot[s, self.joint[g]]
         r_box = r_joint @ self.placement_R[g]
-        center = trans[s, self.joint[g]] + np.einsum(
-            "mab,mb->ma", r_joint, self.placement_t[g] + self.placement_R[g] @ np.zeros(3)
-        ) + np.einsum("mab,mb->ma", r_box, self.box_t[g])
+        center = (
+            trans[s, self.joint[g]]
+            + np.einsum(
+                "mab,mb->ma", r_joint, self.placement_t[g] + self.placement_R[g] @ np.zeros(3)
+            )
+            + np.einsum("mab,mb->ma", r_box, self.box_t[g])
+        )
         la = np.einsum("mba,mb->ma", r_box, ends_a[is_box] - center)
         lb = np.einsum("mba,mb->ma", r_box, ends_b[is_box] - center)
         radius = self.cap_r[o][:, None]
@@ -278,17 +310,23 @@ class SelfCollisionChecker:
         if len(sample_idx) == 0:
             return hit
         pa, pb = a[pair_idx], b[pair_idx]
-        dist = _segment_distances(ends_a[sample_idx, pa], ends_b[sample_idx, pa],
-                                  ends_a[sample_idx, pb], ends_b[sample_idx, pb])
+        dist = _segment_distances(
+            ends_a[sample_idx, pa],
+            ends_b[sample_idx, pa],
+            ends_a[sample_idx, pb],
+            ends_b[sample_idx, pb],
+        )
         close = dist <= self.cap_r[pa] + self.cap_r[pb] + 1e-9
         sample_idx, pair_idx = sample_idx[close], pair_idx[close]
         if len(sample_idx) == 0:
             return hit
         ga, gb = a[pair_idx], b[pair_idx]
-        sep = self._box_separates(rot, trans, sample_idx, ga, gb, ends_a[sample_idx, gb],
-                                  ends_b[sample_idx, gb])
-        sep |= self._box_separates(rot, trans, sample_idx, gb, ga, ends_a[sample_idx, ga],
-                                   ends_b[sample_idx, ga])
+        sep = self._box_separates(
+            rot, trans, sample_idx, ga, gb, ends_a[sample_idx, gb], ends_b[sample_idx, gb]
+        )
+        sep |= self._box_separates(
+            rot, trans, sample_idx, gb, ga, ends_a[sample_idx, ga], ends_b[sample_idx, ga]
+        )
         sample_idx, ga, gb = sample_idx[~sep], ga[~sep], gb[~sep]
         # Sure hits: the inner capsules (contained in the shapes) already intersect.
         ri, rk = rot[sample_idx, self.joint[ga]], rot[sample_idx, self.joint[gb]]
@@ -299,8 +337,11 @@ class SelfCollisionChecker:
             np.einsum("mab,mb->ma", rk, self.inner_a[gb]) + tk,
             np.einsum("mab,mb->ma", rk, self.inner_b[gb]) + tk,
         )
-        sure = (self.inner_r[ga] >= 0) & (self.inner_r[gb] >= 0) & (
-            inner < self.inner_r[ga] + self.inner_r[gb] - 1e-9)
+        sure = (
+            (self.inner_r[ga] >= 0)
+            & (self.inner_r[gb] >= 0)
+            & (inner < self.inner_r[ga] + self.inner_r[gb] - 1e-9)
+        )
         hit[sample_idx[sure]] = True
         rest = ~hit[sample_idx]
         sample_idx, ga, gb = sample_idx[rest], ga[rest], gb[rest]
@@ -311,10 +352,12 @@ class SelfCollisionChecker:
                 continue
             ji, jk = self.joint[i], self.joint[k]
             ri, rk = rot[s, ji], rot[s, jk]
-            tf_i = coal.Transform3s(ri @ self.placement_R[i],
-                                    trans[s, ji] + ri @ self.placement_t[i])
-            tf_k = coal.Transform3s(rk @ self.placement_R[k],
-                                    trans[s, jk] + rk @ self.placement_t[k])
+            tf_i = coal.Transform3s(
+                ri @ self.placement_R[i], trans[s, ji] + ri @ self.placement_t[i]
+            )
+            tf_k = coal.Transform3s(
+                rk @ self.placement_R[k], trans[s, jk] + rk @ self.placement_t[k]
+            )
             result.clear()
             if coal.collide(self.shapes[i], tf_i, self.shapes[k], tf_k, request, result):
                 hit[s] = True
@@ -340,7 +383,8 @@ def set_collision_pairs(model: Any, gmodel: Any, q_ref: FloatArray) -> None:
     checker = SelfCollisionChecker.from_geometry_model(gmodel)
     index = np.arange(len(checker.pairs))
     colliding = [
-        (int(checker.pairs[k, 0]), int(checker.pairs[k, 1])) for k in index
+        (int(checker.pairs[k, 0]), int(checker.pairs[k, 1]))
+        for k in index
         if checker.subset(index == k).colliding(rot, trans)[0]
     ]
     for first, second in colliding:

@@ -144,7 +144,7 @@ def resolve_urdf(spec: CharacterSpec, spec_path: Path) -> Path:
         share = example_robot_data_share()
         if share is None:
             raise SpecError("urdf", "example-robot-data is not installed")
-        path = share / "example-robot-data" / spec.urdf[len(ERD_PREFIX):]
+        path = share / "example-robot-data" / spec.urdf[len(ERD_PREFIX) :]
     else:
         path = (spec_path.parent / spec.urdf).resolve()
     if not path.is_file():
@@ -169,8 +169,7 @@ def _limb(model: Any, spec: LimbSpec, i: int) -> Limb:
     if not model.existJointName(spec.root_joint):
         raise SpecError(f"{where}.root_joint", f"no joint {spec.root_joint!r} in the URDF")
     if not model.existFrame(spec.effector_frame):
-        raise SpecError(f"{where}.effector_frame",
-                        f"no frame {spec.effector_frame!r} in the URDF")
+        raise SpecError(f"{where}.effector_frame", f"no frame {spec.effector_frame!r} in the URDF")
     root = model.getJointId(spec.root_joint)
     frame_id = model.getFrameId(spec.effector_frame)
     chain = []
@@ -179,8 +178,10 @@ def _limb(model: Any, spec: LimbSpec, i: int) -> Limb:
         chain.append(j)
         j = int(model.parents[j])
     if j != root:
-        raise SpecError(f"{where}.root_joint",
-                        f"{spec.root_joint!r} is not an ancestor of {spec.effector_frame!r}")
+        raise SpecError(
+            f"{where}.root_joint",
+            f"{spec.root_joint!r} is not an ancestor of {spec.effector_frame!r}",
+        )
     chain.append(root)
     chain.reverse()
     names = tuple(str(model.names[j]) for j in chain)
@@ -190,12 +191,20 @@ def _limb(model: Any, spec: LimbSpec, i: int) -> Limb:
             raise SpecError(f"{where}.posture_weights.{name}", "not a joint of this limb")
         weights[names.index(name)] = w
     return Limb(
-        name=spec.name, root_joint=spec.root_joint, effector_frame=spec.effector_frame,
-        contact=spec.contact, half_size=_ro(spec.half_size), normal=_ro(spec.normal),
-        offset=_ro(spec.offset), mu=spec.mu, joint_names=names,
+        name=spec.name,
+        root_joint=spec.root_joint,
+        effector_frame=spec.effector_frame,
+        contact=spec.contact,
+        half_size=_ro(spec.half_size),
+        normal=_ro(spec.normal),
+        offset=_ro(spec.offset),
+        mu=spec.mu,
+        joint_names=names,
         idx_q=_ro([model.joints[j].idx_q for j in chain], np.int64),
         idx_v=_ro([model.joints[j].idx_v for j in chain], np.int64),
-        joint_ids=_ro(chain, np.int64), frame_id=int(frame_id), posture_weights=_ro(weights),
+        joint_ids=_ro(chain, np.int64),
+        frame_id=int(frame_id),
+        posture_weights=_ro(weights),
     )
 
 
@@ -238,13 +247,14 @@ def load_character(spec_path: str | Path) -> Character:
             raise SpecError(f"reference_posture.{name}", "no such joint in the URDF")
         k = q_names[name]
         if not lower[k] - 1e-9 <= value <= upper[k] + 1e-9:
-            raise SpecError(f"reference_posture.{name}",
-                            f"{value} outside the joint limits [{lower[k]}, {upper[k]}]")
+            raise SpecError(
+                f"reference_posture.{name}",
+                f"{value} outside the joint limits [{lower[k]}, {upper[k]}]",
+            )
         q[7 + k] = value
     q[7:] = np.clip(q[7:], lower, upper)
     limbs = tuple(_limb(model, limb, i) for i, limb in enumerate(spec.limbs))
-    q[2] = spec.root_height if spec.root_height is not None else -_lowest_contact_z(
-        model, limbs, q)
+    q[2] = spec.root_height if spec.root_height is not None else -_lowest_contact_z(model, limbs, q)
     if spec.self_collision_mode == "urdf":
         geometry = pin.buildGeomFromUrdfString(model, urdf_text, pin.GeometryType.COLLISION)
     else:
@@ -252,9 +262,20 @@ def load_character(spec_path: str | Path) -> Character:
     set_collision_pairs(model, geometry, q)
     mass = float(sum(inertia.mass for inertia in model.inertias))
     return Character(
-        id=spec.id, spec_path=path, spec_text=spec_text, urdf_text=urdf_text, spec=spec,
-        model=model, geometry=geometry, mass=mass, joint_names=names, q_ref=_ro(q),
-        lower=_ro(lower), upper=_ro(upper), limbs=limbs, trunk=_trunk_shapes(spec),
+        id=spec.id,
+        spec_path=path,
+        spec_text=spec_text,
+        urdf_text=urdf_text,
+        spec=spec,
+        model=model,
+        geometry=geometry,
+        mass=mass,
+        joint_names=names,
+        q_ref=_ro(q),
+        lower=_ro(lower),
+        upper=_ro(upper),
+        limbs=limbs,
+        trunk=_trunk_shapes(spec),
     )
 
 

@@ -122,8 +122,9 @@ def _trunk(value: Any) -> tuple[TrunkShapeSpec, ...]:
             out.append(TrunkShapeSpec("box", he, None, None, position, rpy))
         elif kind == "capsule":
             radius = _num(_require(item, "radius", f"{where}."), f"{where}.radius", positive=True)
-            half = _num(_require(item, "half_length", f"{where}."), f"{where}.half_length",
-                        nonneg=True)
+            half = _num(
+                _require(item, "half_length", f"{where}."), f"{where}.half_length", nonneg=True
+            )
             out.append(TrunkShapeSpec("capsule", None, radius, half, position, rpy))
         else:
             raise SpecError(f"{where}.type", f"expected 'box' or 'capsule', got {kind!r}")
@@ -159,8 +160,9 @@ def _limb(raw: Any, i: int) -> LimbSpec:
     return LimbSpec(
         name=name,
         root_joint=_str(_require(item, "root_joint", f"{where}."), f"{where}.root_joint"),
-        effector_frame=_str(_require(item, "effector_frame", f"{where}."),
-                            f"{where}.effector_frame"),
+        effector_frame=_str(
+            _require(item, "effector_frame", f"{where}."), f"{where}.effector_frame"
+        ),
         contact=contact,
         half_size=(hx, hy),
         normal=unit,

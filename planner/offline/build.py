@@ -70,7 +70,10 @@ def _moving_joints(kin: TreeKinematics, limb: Limb) -> NDArray[np.bool_]:
 
 
 def _limb_pairs(
-    kin: TreeKinematics, checker: SelfCollisionChecker, limb: Limb, moving: NDArray[np.bool_],
+    kin: TreeKinematics,
+    checker: SelfCollisionChecker,
+    limb: Limb,
+    moving: NDArray[np.bool_],
     base: tuple[FloatArray, FloatArray],
 ) -> NDArray[np.bool_]:
     """(p,) mask of the pairs that can collide when only the limb moves: at least one
@@ -146,8 +149,13 @@ def _collect(
 
 
 def build_limb(
-    character: Character, limb_index: int, kin: TreeKinematics, checker: SelfCollisionChecker,
-    params: OfflineParams, rng: np.random.Generator, progress: Progress | None = None,
+    character: Character,
+    limb_index: int,
+    kin: TreeKinematics,
+    checker: SelfCollisionChecker,
+    params: OfflineParams,
+    rng: np.random.Generator,
+    progress: Progress | None = None,
 ) -> Arrays:
     """Workspace points and database of one limb; the other joints stay at the reference.
 
@@ -175,8 +183,18 @@ def build_limb(
         r_f, t_f = frame_placement(rot, trans, f_joint, f_rot, f_trans)
         return np.concatenate([t_f, r_f.reshape(-1, 9)], axis=1)
 
-    qs, kept = _collect(draw, limb_checker, kin, params.workspace_samples, params,
-                        f"limb {limb.name}", progress, keep, moving, base_placements)
+    qs, kept = _collect(
+        draw,
+        limb_checker,
+        kin,
+        params.workspace_samples,
+        params,
+        f"limb {limb.name}",
+        progress,
+        keep,
+        moving,
+        base_placements,
+    )
     q_all = np.concatenate(qs)[:, cols]
     placements = np.concatenate(kept)
     n_db = params.database_samples
@@ -198,8 +216,12 @@ def build_limb(
 
 
 def build_com(
-    character: Character, kin: TreeKinematics, checker: SelfCollisionChecker,
-    params: OfflineParams, rng: np.random.Generator, progress: Progress | None = None,
+    character: Character,
+    kin: TreeKinematics,
+    checker: SelfCollisionChecker,
+    params: OfflineParams,
+    rng: np.random.Generator,
+    progress: Progress | None = None,
 ) -> FloatArray:
     """(com_samples, L, 3) whole-body COM of collision-free samples (all joints uniform within
     limits) expressed in each of the L limbs' effector frames."""
@@ -220,13 +242,14 @@ def build_com(
             per_limb.append(np.einsum("nba,nb->na", r_f, com - t_f))
         return np.stack(per_limb, axis=1)
 
-    _, kept = _collect(draw, checker, kin, params.com_samples, params, "whole body", progress,
-                       keep)
+    _, kept = _collect(draw, checker, kin, params.com_samples, params, "whole body", progress, keep)
     return np.concatenate(kept)
 
 
 def build_all(
-    character: Character, params: OfflineParams, seed: int,
+    character: Character,
+    params: OfflineParams,
+    seed: int,
     progress: Progress | None = None,
 ) -> tuple[list[Arrays], FloatArray]:
     """Every limb's arrays and the COM samples. Limb i uses the generator seeded with
@@ -235,10 +258,8 @@ def build_all(
     kin = TreeKinematics.from_model(character.model)
     checker = SelfCollisionChecker.from_geometry_model(character.geometry)
     limbs = [
-        build_limb(character, i, kin, checker, params, np.random.default_rng([seed, i]),
-                   progress)
+        build_limb(character, i, kin, checker, params, np.random.default_rng([seed, i]), progress)
         for i in range(len(character.limbs))
     ]
-    com = build_com(character, kin, checker, params, np.random.default_rng([seed, 1000]),
-                    progress)
+    com = build_com(character, kin, checker, params, np.random.default_rng([seed, 1000]), progress)
     return limbs, com

@@ -25,17 +25,36 @@ def _parser() -> argparse.ArgumentParser:
         "of characters; cached results are reused.",
     )
     who = parser.add_mutually_exclusive_group()
-    who.add_argument("--character", action="append", metavar="ID",
-                     help="character id (repeatable); default: the built-in characters")
-    who.add_argument("--all", action="store_true",
-                     help="built-in characters and the real robots available")
-    parser.add_argument("--spec", action="append", type=Path, default=[], metavar="PATH",
-                        help="limb spec file of another character (repeatable)")
-    parser.add_argument("--cache-dir", type=Path, default=None,
-                        help=f"cache directory (default: {default_cache_dir()})")
+    who.add_argument(
+        "--character",
+        action="append",
+        metavar="ID",
+        help="character id (repeatable); default: the built-in characters",
+    )
+    who.add_argument(
+        "--all", action="store_true", help="built-in characters and the real robots available"
+    )
+    parser.add_argument(
+        "--spec",
+        action="append",
+        type=Path,
+        default=[],
+        metavar="PATH",
+        help="limb spec file of another character (repeatable)",
+    )
+    parser.add_argument(
+        "--cache-dir",
+        type=Path,
+        default=None,
+        help=f"cache directory (default: {default_cache_dir()})",
+    )
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--samples", type=int, default=None,
-                        help="workspace and COM samples (shorthand for both options below)")
+    parser.add_argument(
+        "--samples",
+        type=int,
+        default=None,
+        help="workspace and COM samples (shorthand for both options below)",
+    )
     parser.add_argument("--workspace-samples", type=int, default=None)
     parser.add_argument("--com-samples", type=int, default=None)
     parser.add_argument("--database-samples", type=int, default=None)
@@ -51,8 +70,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     com = args.com_samples or args.samples or defaults.com_samples
     database = args.database_samples or min(defaults.database_samples, workspace)
     try:
-        params = OfflineParams(workspace_samples=workspace, database_samples=database,
-                               com_samples=com)
+        params = OfflineParams(
+            workspace_samples=workspace, database_samples=database, com_samples=com
+        )
     except ValueError as exc:
         print(f"gecko-build-data: {exc}", file=sys.stderr)
         return 2
@@ -73,8 +93,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     for spec in specs:
         start = time.perf_counter()
         character = load_character(spec)
-        data = load_offline_data(character, args.cache_dir, seed=args.seed, params=params,
-                                 progress=not args.no_progress)
+        data = load_offline_data(
+            character, args.cache_dir, seed=args.seed, params=params, progress=not args.no_progress
+        )
         status = "built" if data.built else "cached"
         print(f"{character.id}: {status} in {time.perf_counter() - start:.2f} s -> {data.path}")
     return 0

@@ -115,7 +115,10 @@ def cache_path(character: Character, cache_dir: Path, key: str) -> Path:
 
 
 def _arrays(
-    character: Character, params: OfflineParams, seed: int, key: str,
+    character: Character,
+    params: OfflineParams,
+    seed: int,
+    key: str,
     progress: Callable[[int], object] | None,
 ) -> dict[str, NDArray[Any]]:
     limbs, com = build_all(character, params, seed, progress)
@@ -126,9 +129,14 @@ def _arrays(
         out[f"limb{i}_ws_A"] = hull.A
         out[f"limb{i}_ws_b"] = hull.b
         out[f"limb{i}_ws_count"] = np.array(len(arrays["positions"]))
-        db = SampleDatabase.build(arrays["db_q"], arrays["db_positions"],
-                                  arrays["db_rotations"], arrays["db_jacobians"],
-                                  arrays["db_cost"], params.voxel_size)
+        db = SampleDatabase.build(
+            arrays["db_q"],
+            arrays["db_positions"],
+            arrays["db_rotations"],
+            arrays["db_jacobians"],
+            arrays["db_cost"],
+            params.voxel_size,
+        )
         out[f"limb{i}_db_q"] = db.q
         out[f"limb{i}_db_positions"] = db.positions
         out[f"limb{i}_db_rotations"] = db.rotations
@@ -143,29 +151,43 @@ def _arrays(
 
 
 def _from_arrays(
-    character: Character, arrays: Any, params: OfflineParams, seed: int, key: str, built: bool,
+    character: Character,
+    arrays: Any,
+    params: OfflineParams,
+    seed: int,
+    key: str,
+    built: bool,
     path: Path | None,
 ) -> OfflineData:
     limbs = []
     coms = []
     for i, limb in enumerate(character.limbs):
-        ws = ConvexPolytope(arrays[f"limb{i}_ws_vertices"], arrays[f"limb{i}_ws_A"],
-                            arrays[f"limb{i}_ws_b"])
+        ws = ConvexPolytope(
+            arrays[f"limb{i}_ws_vertices"], arrays[f"limb{i}_ws_A"], arrays[f"limb{i}_ws_b"]
+        )
         db = SampleDatabase.build(
-            arrays[f"limb{i}_db_q"], arrays[f"limb{i}_db_positions"],
-            arrays[f"limb{i}_db_rotations"], arrays[f"limb{i}_db_jacobians"],
-            arrays[f"limb{i}_db_cost"], params.voxel_size, presorted=True,
+            arrays[f"limb{i}_db_q"],
+            arrays[f"limb{i}_db_positions"],
+            arrays[f"limb{i}_db_rotations"],
+            arrays[f"limb{i}_db_jacobians"],
+            arrays[f"limb{i}_db_cost"],
+            params.voxel_size,
+            presorted=True,
         )
         limbs.append(LimbOfflineData(limb.name, ws, int(arrays[f"limb{i}_ws_count"]), db))
-        com = ConvexPolytope(arrays[f"limb{i}_com_vertices"], arrays[f"limb{i}_com_A"],
-                             arrays[f"limb{i}_com_b"])
-        coms.append(ComConstraint(limb.name, limb.effector_frame, com,
-                                  int(arrays[f"limb{i}_com_count"])))
+        com = ConvexPolytope(
+            arrays[f"limb{i}_com_vertices"], arrays[f"limb{i}_com_A"], arrays[f"limb{i}_com_b"]
+        )
+        coms.append(
+            ComConstraint(limb.name, limb.effector_frame, com, int(arrays[f"limb{i}_com_count"]))
+        )
     return OfflineData(character.id, key, seed, params, tuple(limbs), tuple(coms), built, path)
 
 
 def build_offline_data(
-    character: Character, seed: int = 0, params: OfflineParams | None = None,
+    character: Character,
+    seed: int = 0,
+    params: OfflineParams | None = None,
     progress: Callable[[int], object] | None = None,
 ) -> OfflineData:
     """Compute the offline data without touching the cache (``built`` True, ``path`` None)."""

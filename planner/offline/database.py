@@ -59,8 +59,13 @@ class SampleDatabase:
 
     @staticmethod
     def build(
-        q: FloatArray, positions: FloatArray, rotations: FloatArray, jacobians: FloatArray,
-        cost: FloatArray, voxel_size: float, presorted: bool = False,
+        q: FloatArray,
+        positions: FloatArray,
+        rotations: FloatArray,
+        jacobians: FloatArray,
+        cost: FloatArray,
+        voxel_size: float,
+        presorted: bool = False,
     ) -> SampleDatabase:
         """Rank the samples by ``cost`` (stable) unless ``presorted``, and index them."""
         rank = np.arange(len(cost)) if presorted else np.argsort(cost, kind="stable")
@@ -71,9 +76,15 @@ class SampleDatabase:
         uniq, first = np.unique(keys[order], return_index=True)
         starts = np.append(first, len(order))
         return SampleDatabase(
-            _ro(np.asarray(q)[rank]), _ro(pos), _ro(np.asarray(rotations)[rank]),
-            _ro(np.asarray(jacobians)[rank]), _ro(np.asarray(cost)[rank]), float(voxel_size),
-            _ro(uniq, np.int64), _ro(starts, np.int64), _ro(order, np.int64),
+            _ro(np.asarray(q)[rank]),
+            _ro(pos),
+            _ro(np.asarray(rotations)[rank]),
+            _ro(np.asarray(jacobians)[rank]),
+            _ro(np.asarray(cost)[rank]),
+            float(voxel_size),
+            _ro(uniq, np.int64),
+            _ro(starts, np.int64),
+            _ro(order, np.int64),
         )
 
     def _gather(self, lo_cells: IntArray, hi_cells: IntArray) -> IntArray:

@@ -247,9 +247,9 @@ def _sharing_pairs(keys: IntArray, owners: IntArray, max_group: int) -> tuple[In
     return np.concatenate(firsts), np.concatenate(seconds)
 
 
-def face_pairs(faces: IntArray, candidates: IntArray, max_vertex_degree: int) -> tuple[
-    IntArray, IntArray
-]:
+def face_pairs(
+    faces: IntArray, candidates: IntArray, max_vertex_degree: int
+) -> tuple[IntArray, IntArray]:
     """Pairs of candidate faces sharing a vertex (vertices up to the degree bound) or an edge."""
     sub = faces[candidates]
     owners = np.repeat(candidates, 3)
@@ -305,18 +305,31 @@ def extract_surfaces(
     weight = areas[members_all]
     tri = vertices[faces[members_all]]
     area_r = np.bincount(region_of, weights=weight, minlength=count)
-    normal_r = np.asarray(np.stack([np.bincount(region_of, weights=normals[members_all, k] * weight,
-                                                minlength=count) for k in range(3)], axis=1),
-                          dtype=np.float64)
-    centre_r = np.stack([np.bincount(region_of, weights=tri[:, :, k].mean(axis=1) * weight,
-                                     minlength=count) for k in range(3)], axis=1)
+    normal_r = np.asarray(
+        np.stack(
+            [
+                np.bincount(region_of, weights=normals[members_all, k] * weight, minlength=count)
+                for k in range(3)
+            ],
+            axis=1,
+        ),
+        dtype=np.float64,
+    )
+    centre_r = np.stack(
+        [
+            np.bincount(region_of, weights=tri[:, :, k].mean(axis=1) * weight, minlength=count)
+            for k in range(3)
+        ],
+        axis=1,
+    )
     length = np.linalg.norm(normal_r, axis=1)
     usable = (length > 0.0) & (area_r > 0.0)
     normal_r[usable] /= length[usable, None]
     centre_r[usable] /= area_r[usable, None]
     basis_r = _plane_bases(normal_r)
-    offsets = np.abs(np.einsum("fkj,fj->fk", tri - centre_r[region_of][:, None, :],
-                               normal_r[region_of])).max(axis=1)
+    offsets = np.abs(
+        np.einsum("fkj,fj->fk", tri - centre_r[region_of][:, None, :], normal_r[region_of])
+    ).max(axis=1)
     flat_r = np.zeros(count)
     np.maximum.at(flat_r, region_of, offsets)
     order = np.argsort(region_of, kind="stable")
@@ -327,8 +340,16 @@ def extract_surfaces(
             continue
         members = np.sort(members_all[order[bounds[r] : bounds[r + 1]]])
         surface = _make_surface(
-            len(surfaces), int(kind[rep[kept[r]]]), vertices, faces, members,
-            float(area_r[r]), normal_r[r], centre_r[r], basis_r[r], float(flat_r[r]),
+            len(surfaces),
+            int(kind[rep[kept[r]]]),
+            vertices,
+            faces,
+            members,
+            float(area_r[r]),
+            normal_r[r],
+            centre_r[r],
+            basis_r[r],
+            float(flat_r[r]),
         )
         face_surface[members] = surface.id
         surfaces.append(surface)

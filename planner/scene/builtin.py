@@ -47,8 +47,9 @@ _FACES = {
 }
 
 
-def _box(lo: Sequence[float] | FloatArray, hi: Sequence[float] | FloatArray,
-         skip: Sequence[str] = ()) -> Part:
+def _box(
+    lo: Sequence[float] | FloatArray, hi: Sequence[float] | FloatArray, skip: Sequence[str] = ()
+) -> Part:
     """Axis-aligned box [lo, hi] as outward-wound quads, without the faces named in skip."""
     lo_a, hi_a = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
     vertices: list[FloatArray] = []
@@ -81,18 +82,29 @@ def _ground(center: Sequence[float] = (0.0, 0.0), size: Sequence[float] = (10.0,
     cx, cy = center
     hx, hy = size[0] / 2.0, size[1] / 2.0
     vertices = np.array(
-        [[cx - hx, cy - hy, 0.0], [cx + hx, cy - hy, 0.0], [cx + hx, cy + hy, 0.0],
-         [cx - hx, cy + hy, 0.0]]
+        [
+            [cx - hx, cy - hy, 0.0],
+            [cx + hx, cy - hy, 0.0],
+            [cx + hx, cy + hy, 0.0],
+            [cx - hx, cy + hy, 0.0],
+        ]
     )
     return vertices, np.array([[0, 1, 2], [0, 2, 3]], dtype=np.int64)
 
 
-def _cylinder(center: Sequence[float], z0: float, z1: float, radius: float, sections: int = 24,
-              bottom: bool = False) -> Part:
+def _cylinder(
+    center: Sequence[float],
+    z0: float,
+    z1: float,
+    radius: float,
+    sections: int = 24,
+    bottom: bool = False,
+) -> Part:
     """Vertical cylinder with a fan-triangulated top (and optionally bottom) cap."""
     angles = 2.0 * np.pi * np.arange(sections) / sections
-    ring = np.stack([center[0] + radius * np.cos(angles), center[1] + radius * np.sin(angles)],
-                    axis=1)
+    ring = np.stack(
+        [center[0] + radius * np.cos(angles), center[1] + radius * np.sin(angles)], axis=1
+    )
     low = np.column_stack([ring, np.full(sections, z0)])
     high = np.column_stack([ring, np.full(sections, z1)])
     top_center = [center[0], center[1], z1]
@@ -100,8 +112,9 @@ def _cylinder(center: Sequence[float], z0: float, z1: float, radius: float, sect
     vertices = np.vstack([low, high, [top_center, bottom_center]])
     i = np.arange(sections)
     j = (i + 1) % sections
-    side = np.concatenate([np.stack([i, j, sections + j], 1), np.stack([i, sections + j,
-                                                                        sections + i], 1)])
+    side = np.concatenate(
+        [np.stack([i, j, sections + j], 1), np.stack([i, sections + j, sections + i], 1)]
+    )
     top = np.stack([np.full(sections, 2 * sections), sections + i, sections + j], 1)
     parts = [side, top]
     if bottom:
@@ -124,8 +137,9 @@ def _ear_clip(polygon: FloatArray) -> IntArray:
             if cross(a, b, c) <= 1e-12:
                 continue
             others = [polygon[i] for i in remaining if i not in (ia, ib, ic)]
-            if any(cross(a, b, p) >= 0 and cross(b, c, p) >= 0 and cross(c, a, p) >= 0
-                   for p in others):
+            if any(
+                cross(a, b, p) >= 0 and cross(b, c, p) >= 0 and cross(c, a, p) >= 0 for p in others
+            ):
                 continue
             triangles.append([ia, ib, ic])
             remaining.pop(k)
@@ -195,8 +209,10 @@ def stairs_mesh() -> trimesh.Trimesh:
     The handrail runs on the +y side, 0.9 m above the tread nosings, on two posts.
     """
     half_width = STAIRS_WIDTH / 2.0
-    parts = [_ground(center=(2.0, 0.0), size=(10.0, 8.0)),
-             _prism(stairs_profile(), -half_width, half_width)]
+    parts = [
+        _ground(center=(2.0, 0.0), size=(10.0, 8.0)),
+        _prism(stairs_profile(), -half_width, half_width),
+    ]
     rail_y = half_width + 0.05
     x_bottom = STAIRS_START_X + 0.1
     x_top = STAIRS_START_X + (STAIRS_STEPS - 1) * STAIRS_TREAD + 0.1
@@ -204,8 +220,11 @@ def stairs_mesh() -> trimesh.Trimesh:
     z_top = STAIRS_STEPS * STAIRS_RISE + HANDRAIL_HEIGHT
     for x, z in ((x_bottom, z_bottom), (x_top, z_top)):
         # Posts run into the rail; their hidden tops are left out.
-        parts.append(_box((x - 0.025, rail_y - 0.025, 0.0), (x + 0.025, rail_y + 0.025, z),
-                          skip=("-z", "+z")))
+        parts.append(
+            _box(
+                (x - 0.025, rail_y - 0.025, 0.0), (x + 0.025, rail_y + 0.025, z), skip=("-z", "+z")
+            )
+        )
     length = float(np.hypot(x_top - x_bottom, z_top - z_bottom))
     pitch = float(np.arctan2(z_top - z_bottom, x_top - x_bottom))
     center = ((x_bottom + x_top) / 2.0, rail_y, (z_bottom + z_top) / 2.0)
@@ -222,8 +241,13 @@ def chair_mesh() -> trimesh.Trimesh:
     for x in (seat_lo[0], seat_hi[0] - leg):
         for y in (seat_lo[1], seat_hi[1] - leg):
             parts.append(_box((x, y, 0.0), (x + leg, y + leg, seat_lo[2]), skip=("-z", "+z")))
-    parts.append(_box((seat_hi[0] - 0.05, seat_lo[1], seat_hi[2]), (seat_hi[0], seat_hi[1], 0.95),
-                      skip=("-z",)))
+    parts.append(
+        _box(
+            (seat_hi[0] - 0.05, seat_lo[1], seat_hi[2]),
+            (seat_hi[0], seat_hi[1], 0.95),
+            skip=("-z",),
+        )
+    )
     table_lo, table_hi = np.array([0.0, 0.8, 0.72]), np.array([1.0, 1.4, 0.75])
     parts.append(_box(table_lo, table_hi))
     for x in (table_lo[0], table_hi[0] - 0.05):
@@ -245,8 +269,13 @@ def climbing_wall_mesh() -> trimesh.Trimesh:
                 continue
             size = sizes[(row + column) % 3]
             half = size / 2.0
-            parts.append(_box((1.0 - size, y_center - half, z_center - half),
-                              (1.0, y_center + half, z_center + half), skip=("+x",)))
+            parts.append(
+                _box(
+                    (1.0 - size, y_center - half, z_center - half),
+                    (1.0, y_center + half, z_center + half),
+                    skip=("+x",),
+                )
+            )
     return _merge(parts)
 
 
@@ -273,8 +302,9 @@ def rubble_mesh() -> trimesh.Trimesh:
     for k in range(8):
         x = 0.6 + 0.45 * k
         y = 0.15 * (-1) ** k + rng.uniform(-0.05, 0.05)
-        parts.append(_cylinder((x, y), 0.0, rng.uniform(0.08, 0.3), rng.uniform(0.13, 0.18),
-                               sections=16))
+        parts.append(
+            _cylinder((x, y), 0.0, rng.uniform(0.08, 0.3), rng.uniform(0.13, 0.18), sections=16)
+        )
     # Tilted slabs on the +y side.
     for k in range(8):
         center = (0.5 + 0.55 * (k % 4), 1.2 + 0.7 * (k // 4), rng.uniform(0.05, 0.2))
@@ -285,9 +315,13 @@ def rubble_mesh() -> trimesh.Trimesh:
     for k in range(8):
         x, y = 0.5 + 0.55 * (k % 4), -1.2 - 0.7 * (k // 4)
         side = rng.uniform(0.3, 0.45)
-        parts.append(_box((x - side / 2, y - side / 2, 0.0), (x + side / 2, y + side / 2,
-                                                               rng.uniform(0.1, 0.4)),
-                          skip=("-z",)))
+        parts.append(
+            _box(
+                (x - side / 2, y - side / 2, 0.0),
+                (x + side / 2, y + side / 2, rng.uniform(0.1, 0.4)),
+                skip=("-z",),
+            )
+        )
     return _merge(parts)
 
 

@@ -250,8 +250,9 @@ class CollisionWorld:
         best = np.inf
         for other, other_tf in ((self._bvh, self._identity), *self._obstacles):
             result.clear()
-            best = min(best, float(coal.distance(other, other_tf, geometry, transform, request,
-                                                 result)))
+            best = min(
+                best, float(coal.distance(other, other_tf, geometry, transform, request, result))
+            )
         return float(best)
 
     def collides(self, shape: Shape, pose: FloatArray) -> bool:
@@ -262,8 +263,9 @@ class CollisionWorld:
         """(n,) collision flags for (n, 4, 4) carrier poses."""
         geometry = coal_geometry(shape)
         matrices = np.asarray(poses, dtype=np.float64).reshape(-1, 4, 4) @ shape.offset
-        return np.fromiter((self._collide(geometry, m) for m in matrices), dtype=bool,
-                           count=len(matrices))
+        return np.fromiter(
+            (self._collide(geometry, m) for m in matrices), dtype=bool, count=len(matrices)
+        )
 
     def distance(self, shape: Shape, pose: FloatArray) -> float:
         """Distance (m) from ``shape`` at the carrier pose to the nearest object.
@@ -276,8 +278,9 @@ class CollisionWorld:
         """(n,) distances for (n, 4, 4) carrier poses."""
         geometry = coal_geometry(shape)
         matrices = np.asarray(poses, dtype=np.float64).reshape(-1, 4, 4) @ shape.offset
-        return np.fromiter((self._distance(geometry, m) for m in matrices), dtype=np.float64,
-                           count=len(matrices))
+        return np.fromiter(
+            (self._distance(geometry, m) for m in matrices), dtype=np.float64, count=len(matrices)
+        )
 
     def colliding_triangles(
         self, shape: Shape, pose: FloatArray, max_contacts: int = 1000

@@ -66,8 +66,9 @@ def clip_halfplanes(polygon: FloatArray, a: FloatArray, b: FloatArray) -> FloatA
     Returns a (j, 2) array, j == 0 when nothing is left.
     """
     out = np.asarray(polygon, dtype=np.float64)
-    for row, limit in zip(np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64),
-                          strict=True):
+    for row, limit in zip(
+        np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64), strict=True
+    ):
         if len(out) == 0:
             break
         side = out @ row - limit  # <= 0 inside

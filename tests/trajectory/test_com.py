@@ -247,3 +247,35 @@ def test_formulations_agree_on_nested_phases() -> None:
     for ta, tb in zip(a.transitions, b.transitions, strict=True):
         np.testing.assert_allclose(ta.point, tb.point, atol=1e-4)
         assert ta.feasible == tb.feasible
+
+
+def test_given_duration_rescales_time() -> None:
+    phases = walking_phases(5)
+    start = np.array([0.0, 0.0, 0.9])
+    free = trajectory.plan_com_trajectory(phases, start, n_checks=0)
+    fixed = trajectory.plan_com_trajectory(phases, start, n_checks=0, duration=7.0)
+    assert fixed.curve.t1 - fixed.curve.t0 == pytest.approx(7.0)
+    assert fixed.phase_times[-1] == pytest.approx(7.0)
+    ts = np.linspace(0.0, 1.0, 11)
+    np.testing.assert_allclose(
+        free.curve(free.curve.t0 + ts * (free.curve.t1 - free.curve.t0)),
+        fixed.curve(fixed.curve.t0 + ts * 7.0),
+        atol=1e-9,
+    )
+    with pytest.raises(ValueError, match="duration"):
+        trajectory.plan_com_trajectory(phases, start, duration=-1.0)
+
+
+def test_user_placed_transitions_are_checked_not_moved() -> None:
+    phases = figure2_phases()
+    start = np.array([0.0, 0.0, 0.9])
+    good = np.array([0.05, 0.02, 1.0])
+    bad = np.array([0.9, 0.9, 1.0])
+    traj = trajectory.plan_com_trajectory(phases, start, user_transitions=[good, None], n_checks=0)
+    np.testing.assert_allclose(traj.transitions[0].point, good)
+    assert traj.transitions[0].feasible == bool(trajectory.is_static_equilibrium(phases[1], good))
+    traj2 = trajectory.plan_com_trajectory(phases, start, user_transitions=[bad, None], n_checks=0)
+    np.testing.assert_allclose(traj2.transitions[0].point, bad)
+    assert not traj2.transitions[0].feasible and traj2.transitions[0].slack > 0.1
+    with pytest.raises(ValueError, match="user_transitions"):
+        trajectory.plan_com_trajectory(phases, start, user_transitions=[good])

@@ -46,8 +46,11 @@ def test_builtin_character_shapes(cid: str) -> None:
     assert c.model.nq == 7 + c.n_joints
     assert c.joint_names == tuple(c.model.names[2:])
     assert np.all(c.lower < c.upper)
-    expected = {"humanoid": (4, 60.0, 70.0), "quadruped": (4, 20.0, 30.0),
-                "hexapod": (6, 3.0, 10.0)}[cid]
+    expected = {
+        "humanoid": (4, 60.0, 70.0),
+        "quadruped": (4, 20.0, 30.0),
+        "hexapod": (6, 3.0, 10.0),
+    }[cid]
     assert len(c.limbs) == expected[0]
     assert expected[1] <= c.mass <= expected[2]
     assert c.mass == pytest.approx(pin.computeTotalMass(c.model))
@@ -110,17 +113,21 @@ def test_batch_fk_matches_pinocchio() -> None:
             np.testing.assert_allclose(com[k], pin.centerOfMass(c.model, data, qf), atol=1e-12)
             for limb in c.limbs:
                 frame = c.model.frames[limb.frame_id]
-                r_f, t_f = frame_placement(rot[k:k + 1], trans[k:k + 1], frame.parentJoint,
-                                           frame.placement.rotation,
-                                           frame.placement.translation)
-                np.testing.assert_allclose(t_f[0], data.oMf[limb.frame_id].translation,
-                                           atol=1e-12)
-                np.testing.assert_allclose(r_f[0], data.oMf[limb.frame_id].rotation,
-                                           atol=1e-12)
-                jac = pin.computeFrameJacobian(c.model, data, qf, limb.frame_id,
-                                               pin.LOCAL_WORLD_ALIGNED)
-                mine = frame_jacobian(kin, rot[k:k + 1], trans[k:k + 1],
-                                      np.asarray(limb.joint_ids), t_f)
+                r_f, t_f = frame_placement(
+                    rot[k : k + 1],
+                    trans[k : k + 1],
+                    frame.parentJoint,
+                    frame.placement.rotation,
+                    frame.placement.translation,
+                )
+                np.testing.assert_allclose(t_f[0], data.oMf[limb.frame_id].translation, atol=1e-12)
+                np.testing.assert_allclose(r_f[0], data.oMf[limb.frame_id].rotation, atol=1e-12)
+                jac = pin.computeFrameJacobian(
+                    c.model, data, qf, limb.frame_id, pin.LOCAL_WORLD_ALIGNED
+                )
+                mine = frame_jacobian(
+                    kin, rot[k : k + 1], trans[k : k + 1], np.asarray(limb.joint_ids), t_f
+                )
                 np.testing.assert_allclose(mine[0], jac[:, limb.idx_v], atol=1e-12)
 
 
@@ -134,16 +141,25 @@ def test_self_collision_checker_matches_pinocchio(cid: str) -> None:
     rot, trans = joint_placements(kin, q)
     mine = checker.colliding(rot, trans)
     data = c.model.createData()
-    ref = np.array([  # a fresh GeometryData per sample: coal caches GJK guesses between calls
-        pin.computeCollisions(c.model, data, c.geometry, pin.GeometryData(c.geometry),
-                              np.concatenate([[0, 0, 0, 0, 0, 0, 1], qk]), True)
-        for qk in q
-    ])
+    ref = np.array(
+        [  # a fresh GeometryData per sample: coal caches GJK guesses between calls
+            pin.computeCollisions(
+                c.model,
+                data,
+                c.geometry,
+                pin.GeometryData(c.geometry),
+                np.concatenate([[0, 0, 0, 0, 0, 0, 1], qk]),
+                True,
+            )
+            for qk in q
+        ]
+    )
     # coal's GJK may flip on grazing contacts: any disagreement must be one
     for k in np.nonzero(mine != ref)[0]:
         gdata = pin.GeometryData(c.geometry)
-        pin.computeDistances(c.model, data, c.geometry, gdata,
-                             np.concatenate([[0, 0, 0, 0, 0, 0, 1], q[k]]))
+        pin.computeDistances(
+            c.model, data, c.geometry, gdata, np.concatenate([[0, 0, 0, 0, 0, 0, 1], q[k]])
+        )
         assert min(r.min_distance for r in gdata.distanceResults) < 1e-4
     assert np.sum(mine != ref) <= 3
     assert 0 < ref.sum() < len(q)
@@ -152,9 +168,13 @@ def test_self_collision_checker_matches_pinocchio(cid: str) -> None:
 
 def test_adjacent_pairs_removed() -> None:
     c = get_character("humanoid")
-    names = {(c.geometry.geometryObjects[p.first].parentJoint,
-              c.geometry.geometryObjects[p.second].parentJoint)
-             for p in c.geometry.collisionPairs}
+    names = {
+        (
+            c.geometry.geometryObjects[p.first].parentJoint,
+            c.geometry.geometryObjects[p.second].parentJoint,
+        )
+        for p in c.geometry.collisionPairs
+    }
     thigh = c.model.getJointId("l_hip_pitch")
     shin = c.model.getJointId("l_knee")
     assert (thigh, shin) not in names and (shin, thigh) not in names
@@ -179,7 +199,11 @@ def test_real_robots_load() -> None:
     hyq = get_character("hyq")
     assert hyq.n_joints == 12
     assert [limb.joint_names[0] for limb in hyq.limbs] == [
-        "lf_haa_joint", "rf_haa_joint", "lh_haa_joint", "rh_haa_joint"]
+        "lf_haa_joint",
+        "rf_haa_joint",
+        "lh_haa_joint",
+        "rh_haa_joint",
+    ]
     assert 70 < hyq.mass < 100
 
 

@@ -33,8 +33,10 @@ def test_builtin_specs_parse() -> None:
         (lambda d: d.__setitem__("trunk", []), "trunk"),
         (lambda d: d["trunk"][0].__setitem__("type", "cone"), "trunk[0].type"),
         (lambda d: d["trunk"][0].__setitem__("half_extents", [1, 2]), "trunk[0].half_extents"),
-        (lambda d: d["trunk"][0].__setitem__("half_extents", [1, -2, 1]),
-         "trunk[0].half_extents[1]"),
+        (
+            lambda d: d["trunk"][0].__setitem__("half_extents", [1, -2, 1]),
+            "trunk[0].half_extents[1]",
+        ),
         (lambda d: d.__setitem__("limbs", []), "limbs"),
         (lambda d: d["limbs"][1].pop("root_joint"), "limbs[1].root_joint"),
         (lambda d: d["limbs"][2].__setitem__("contact", "grip"), "limbs[2].contact"),
@@ -43,8 +45,10 @@ def test_builtin_specs_parse() -> None:
         (lambda d: d["limbs"][0].__setitem__("mu", -1), "limbs[0].mu"),
         (lambda d: d["limbs"][0].__setitem__("offset", "up"), "limbs[0].offset"),
         (lambda d: d["limbs"][3].__setitem__("name", "lf_foot"), "limbs[3].name"),
-        (lambda d: d["reference_posture"].__setitem__("lf_kfe", "bent"),
-         "reference_posture.lf_kfe"),
+        (
+            lambda d: d["reference_posture"].__setitem__("lf_kfe", "bent"),
+            "reference_posture.lf_kfe",
+        ),
         (lambda d: d.__setitem__("self_collision", {"mode": "voxels"}), "self_collision.mode"),
         (lambda d: d.__setitem__("root_height", 0), "root_height"),
     ],
@@ -72,15 +76,15 @@ def _write(tmp_path: Path, edit: Any) -> Path:
     ("edit", "field"),
     [
         (lambda d: d["limbs"][0].__setitem__("root_joint", "nope"), "limbs[0].root_joint"),
-        (lambda d: d["limbs"][0].__setitem__("effector_frame", "nope"),
-         "limbs[0].effector_frame"),
+        (lambda d: d["limbs"][0].__setitem__("effector_frame", "nope"), "limbs[0].effector_frame"),
         (lambda d: d["limbs"][0].__setitem__("root_joint", "rh_haa"), "limbs[0].root_joint"),
         (lambda d: d["reference_posture"].__setitem__("tail", 0.1), "reference_posture.tail"),
-        (lambda d: d["reference_posture"].__setitem__("lf_kfe", 3.0),
-         "reference_posture.lf_kfe"),
+        (lambda d: d["reference_posture"].__setitem__("lf_kfe", 3.0), "reference_posture.lf_kfe"),
         (lambda d: d.__setitem__("urdf", "missing.urdf"), "urdf"),
-        (lambda d: d["limbs"][0].__setitem__("posture_weights", {"rh_kfe": 1.0}),
-         "limbs[0].posture_weights.rh_kfe"),
+        (
+            lambda d: d["limbs"][0].__setitem__("posture_weights", {"rh_kfe": 1.0}),
+            "limbs[0].posture_weights.rh_kfe",
+        ),
     ],
 )
 def test_load_errors_name_the_field(tmp_path: Path, edit: Any, field: str) -> None:

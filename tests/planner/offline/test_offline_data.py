@@ -29,8 +29,9 @@ from planner.offline.build import build_all
 from planner.offline.cli import main
 from tests.paths import gecko_cache_dir
 
-SMALL = OfflineParams(workspace_samples=3000, database_samples=800, com_samples=3000,
-                      chunk_size=1500)
+SMALL = OfflineParams(
+    workspace_samples=3000, database_samples=800, com_samples=3000, chunk_size=1500
+)
 
 
 @pytest.fixture(scope="module")
@@ -40,8 +41,10 @@ def cache_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def built(cache_dir: Path) -> dict[str, OfflineData]:
-    return {cid: load_offline_data(get_character(cid), cache_dir, seed=0, params=SMALL)
-            for cid in builtin_character_ids()}
+    return {
+        cid: load_offline_data(get_character(cid), cache_dir, seed=0, params=SMALL)
+        for cid in builtin_character_ids()
+    }
 
 
 def _com_in_effector_frames(character: Character, q: np.ndarray) -> list[np.ndarray]:
@@ -56,8 +59,7 @@ def _com_in_effector_frames(character: Character, q: np.ndarray) -> list[np.ndar
 
 
 @pytest.mark.parametrize("cid", builtin_character_ids())
-def test_workspace_and_com_contain_their_samples(cid: str, built: dict[str, OfflineData]
-                                                  ) -> None:
+def test_workspace_and_com_contain_their_samples(cid: str, built: dict[str, OfflineData]) -> None:
     character = get_character(cid)
     data = built[cid]
     assert data.built
@@ -85,8 +87,9 @@ def test_workspace_and_com_contain_their_samples(cid: str, built: dict[str, Offl
 def test_reference_com_strictly_inside(cid: str, built: dict[str, OfflineData]) -> None:
     character = get_character(cid)
     data = built[cid]
-    for limb, com in zip(character.limbs, _com_in_effector_frames(character, character.q_ref),
-                         strict=True):
+    for limb, com in zip(
+        character.limbs, _com_in_effector_frames(character, character.q_ref), strict=True
+    ):
         poly = data.com_constraint(limb.name).polytope
         assert np.max(poly.A @ com - poly.b) < -1e-3
 
@@ -111,8 +114,7 @@ def test_database_content(cid: str, built: dict[str, OfflineData]) -> None:
             oMf = pdata.oMf[limb.frame_id]
             np.testing.assert_allclose(db.positions[k], oMf.translation, atol=1e-10)
             np.testing.assert_allclose(db.rotations[k], oMf.rotation, atol=1e-10)
-            jac = pin.computeFrameJacobian(model, pdata, q, limb.frame_id,
-                                           pin.LOCAL_WORLD_ALIGNED)
+            jac = pin.computeFrameJacobian(model, pdata, q, limb.frame_id, pin.LOCAL_WORLD_ALIGNED)
             np.testing.assert_allclose(db.jacobians[k], jac[:, limb.idx_v], atol=1e-10)
 
 
@@ -139,8 +141,19 @@ def _arrays(data: OfflineData) -> list[np.ndarray]:
     out = []
     for limb in data.limbs:
         db = limb.database
-        out += [limb.workspace.A, limb.workspace.b, limb.workspace.vertices, db.q, db.positions,
-                db.rotations, db.jacobians, db.cost, db.keys, db.starts, db.order]
+        out += [
+            limb.workspace.A,
+            limb.workspace.b,
+            limb.workspace.vertices,
+            db.q,
+            db.positions,
+            db.rotations,
+            db.jacobians,
+            db.cost,
+            db.keys,
+            db.starts,
+            db.order,
+        ]
     for con in data.com_constraints:
         out += [con.polytope.A, con.polytope.b, con.polytope.vertices]
     return out
@@ -148,8 +161,9 @@ def _arrays(data: OfflineData) -> list[np.ndarray]:
 
 def test_same_seed_same_data() -> None:
     character = get_character("quadruped")
-    params = OfflineParams(workspace_samples=1500, database_samples=300, com_samples=1500,
-                           chunk_size=700)
+    params = OfflineParams(
+        workspace_samples=1500, database_samples=300, com_samples=1500, chunk_size=700
+    )
     a = build_offline_data(character, seed=3, params=params)
     b = build_offline_data(character, seed=3, params=params)
     c = build_offline_data(character, seed=4, params=params)
@@ -176,16 +190,18 @@ def test_cache_hit_loads_without_recomputing(
         for x, y in zip(_arrays(loaded), _arrays(built[cid]), strict=True):
             np.testing.assert_array_equal(x, y)
     with pytest.raises(FileNotFoundError):
-        load_offline_data(get_character("quadruped"), cache_dir, seed=99, params=SMALL,
-                          build_if_missing=False)
+        load_offline_data(
+            get_character("quadruped"), cache_dir, seed=99, params=SMALL, build_if_missing=False
+        )
 
 
 def test_changed_urdf_invalidates_cache(tmp_path: Path) -> None:
     src = character_spec_path("quadruped").parent
     copy = tmp_path / "quadruped"
     shutil.copytree(src, copy)
-    params = OfflineParams(workspace_samples=1000, database_samples=200, com_samples=1000,
-                           chunk_size=500)
+    params = OfflineParams(
+        workspace_samples=1000, database_samples=200, com_samples=1000, chunk_size=500
+    )
     cache = tmp_path / "cache"
     first = load_offline_data(load_character(copy / "quadruped.yaml"), cache, params=params)
     again = load_offline_data(load_character(copy / "quadruped.yaml"), cache, params=params)
@@ -203,20 +219,31 @@ def test_changed_urdf_invalidates_cache(tmp_path: Path) -> None:
 @pytest.mark.parametrize("cid", ["talos", "hyq"])
 def test_real_robot_offline_data(cid: str, tmp_path: Path) -> None:
     character = get_character(cid)
-    params = OfflineParams(workspace_samples=1500, database_samples=300, com_samples=1500,
-                           chunk_size=1500)
+    params = OfflineParams(
+        workspace_samples=1500, database_samples=300, com_samples=1500, chunk_size=1500
+    )
     data = load_offline_data(character, tmp_path, params=params)
     assert data.built and len(data.limbs) == len(character.limbs)
-    for limb, com in zip(character.limbs, _com_in_effector_frames(character, character.q_ref),
-                         strict=True):
+    for limb, com in zip(
+        character.limbs, _com_in_effector_frames(character, character.q_ref), strict=True
+    ):
         poly = data.com_constraint(limb.name).polytope
         assert np.max(poly.A @ com - poly.b) < 0.0
         assert len(data.limb(limb.name).database) == 300
 
 
 def test_cli_builds_then_hits_cache(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    args = ["--character", "quadruped", "--cache-dir", str(tmp_path), "--samples", "600",
-            "--database-samples", "100", "--no-progress"]
+    args = [
+        "--character",
+        "quadruped",
+        "--cache-dir",
+        str(tmp_path),
+        "--samples",
+        "600",
+        "--database-samples",
+        "100",
+        "--no-progress",
+    ]
     assert main(args) == 0
     assert "quadruped: built" in capsys.readouterr().out
     assert main(args) == 0
@@ -232,8 +259,9 @@ def test_default_sizes_in_the_shared_cache() -> None:
     for limb in data.limbs:
         assert limb.workspace_sample_count >= 100_000
         assert len(limb.database) >= 10_000
-    for con, com in zip(data.com_constraints,
-                        _com_in_effector_frames(character, character.q_ref), strict=True):
+    for con, com in zip(
+        data.com_constraints, _com_in_effector_frames(character, character.q_ref), strict=True
+    ):
         assert con.sample_count >= 100_000
         assert np.max(con.polytope.A @ com - con.polytope.b) < -1e-3
 

@@ -29,8 +29,9 @@ def sat_box_triangles(
         return False, 1e-3
     triangles = triangles[near]
     local = (triangles - pose[:3, 3]) @ pose[:3, :3]  # (t, 3, 3) in the box frame
-    edges = np.stack([local[:, 1] - local[:, 0], local[:, 2] - local[:, 1],
-                      local[:, 0] - local[:, 2]], axis=1)  # (t, 3, 3)
+    edges = np.stack(
+        [local[:, 1] - local[:, 0], local[:, 2] - local[:, 1], local[:, 0] - local[:, 2]], axis=1
+    )  # (t, 3, 3)
     normal = np.cross(edges[:, 0], edges[:, 1])[:, None, :]
     box_axes = np.broadcast_to(np.eye(3), (len(local), 3, 3))
     crosses = np.cross(np.eye(3)[None, :, None, :], edges[:, None, :, :]).reshape(len(local), 9, 3)
@@ -159,16 +160,20 @@ def test_bvh_cache_round_trip(tmp_path) -> None:
     rng = np.random.default_rng(5)
     poses, _ = random_boxes(rng, first.bounds, 500)
     box = Box(half_extents=[0.15, 0.1, 0.2])
-    assert np.array_equal(first.collision.collides_many(box, poses),
-                          second.collision.collides_many(box, poses))
-    assert np.array_equal(first.collision.distance_many(box, poses[:100]),
-                          second.collision.distance_many(box, poses[:100]))
+    assert np.array_equal(
+        first.collision.collides_many(box, poses), second.collision.collides_many(box, poses)
+    )
+    assert np.array_equal(
+        first.collision.distance_many(box, poses[:100]),
+        second.collision.distance_many(box, poses[:100]),
+    )
     # A damaged cache file is rebuilt, not trusted.
     path.write_bytes(b"not a bvh")
     third = build_scene(mesh, cache_dir=tmp_path)
     assert not third.collision.from_cache
-    assert np.array_equal(third.collision.collides_many(box, poses),
-                          first.collision.collides_many(box, poses))
+    assert np.array_equal(
+        third.collision.collides_many(box, poses), first.collision.collides_many(box, poses)
+    )
     assert path.stat().st_size > 100
 
 

@@ -83,7 +83,9 @@ def _oracle_area(polygon: np.ndarray, a2: np.ndarray, b2: np.ndarray) -> float:
     halfspaces = np.vstack([eq, np.column_stack([a2, -b2])])
     norms = np.linalg.norm(halfspaces[:, :2], axis=1)
     result = linprog(
-        c=[0, 0, -1], A_ub=np.column_stack([halfspaces[:, :2], norms]), b_ub=-halfspaces[:, 2],
+        c=[0, 0, -1],
+        A_ub=np.column_stack([halfspaces[:, :2], norms]),
+        b_ub=-halfspaces[:, 2],
         bounds=[(None, None), (None, None), (0, 1)],
     )
     if result.status != 0 or result.x[2] < 1e-7:
@@ -92,8 +94,15 @@ def _oracle_area(polygon: np.ndarray, a2: np.ndarray, b2: np.ndarray) -> float:
     return float(ConvexHull(vertices).volume)
 
 
-@given(point_sets, st.floats(-1.0, 1.0), st.floats(-1.0, 1.0), st.floats(-np.pi, np.pi),
-       st.floats(0.1, 1.5), st.floats(0.1, 1.5), st.floats(-0.3, 0.3))
+@given(
+    point_sets,
+    st.floats(-1.0, 1.0),
+    st.floats(-1.0, 1.0),
+    st.floats(-np.pi, np.pi),
+    st.floats(0.1, 1.5),
+    st.floats(0.1, 1.5),
+    st.floats(-0.3, 0.3),
+)
 def test_contact_region_area_matches_halfspace_oracle(points, x, y, yaw, hx, hy, height) -> None:
     polygon = _convex_polygon(points)
     if polygon is None:
@@ -123,8 +132,9 @@ def _box_section(box: Box, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return np.array([[0.0, 0.0]]), np.array([-1.0])
     axes = rotation[:2, :2].T  # rows: box x and y axes in the plane
     a2 = np.vstack([axes, -axes])
-    b2 = np.concatenate([box.half_extents[:2] + axes @ centre[:2],
-                         box.half_extents[:2] - axes @ centre[:2]])
+    b2 = np.concatenate(
+        [box.half_extents[:2] + axes @ centre[:2], box.half_extents[:2] - axes @ centre[:2]]
+    )
     return a2, b2
 
 
@@ -132,16 +142,23 @@ def test_box_across_a_tread_gives_the_overlap_rectangle(builtin_scenes) -> None:
     scene = builtin_scenes["stairs"]
     step = 2
     height = step * b.STAIRS_RISE
-    tread = next(s for s in scene.surfaces_of(SurfaceKind.SUPPORT)
-                 if abs(s.centroid[2] - height) < 1e-9 and abs(s.centroid[1]) < 1e-9)
+    tread = next(
+        s
+        for s in scene.surfaces_of(SurfaceKind.SUPPORT)
+        if abs(s.centroid[2] - height) < 1e-9 and abs(s.centroid[1]) < 1e-9
+    )
     x_front = b.STAIRS_START_X + (step - 1) * b.STAIRS_TREAD
     box = Box(half_extents=[0.2, 0.2, 0.1])
     pose = pose_matrix(np.array([x_front + 0.1, 0.45, height + 0.02]))
     region = scene.collision.contact_region(box, pose, tread)
     assert isinstance(region, ContactRegion)
     polygon, centroid = region
-    expected = {(round(x_front, 9), 0.25), (round(x_front + 0.3, 9), 0.25),
-                (round(x_front + 0.3, 9), 0.5), (round(x_front, 9), 0.5)}
+    expected = {
+        (round(x_front, 9), 0.25),
+        (round(x_front + 0.3, 9), 0.25),
+        (round(x_front + 0.3, 9), 0.5),
+        (round(x_front, 9), 0.5),
+    }
     assert {(round(px, 9), round(py, 9)) for px, py, _ in polygon} == expected
     assert np.allclose(polygon[:, 2], height)
     assert g2.signed_area(polygon[:, :2]) == pytest.approx(0.3 * 0.25)  # counter-clockwise
@@ -159,8 +176,9 @@ def test_contact_region_of_a_rotated_polytope_on_the_ground(builtin_scenes) -> N
     octahedron = ConvexPolytope.from_points(
         np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
     )
-    region = scene.collision.contact_region(octahedron, pose_matrix(np.array([1.0, 2.0, 0.5])),
-                                            ground)
+    region = scene.collision.contact_region(
+        octahedron, pose_matrix(np.array([1.0, 2.0, 0.5])), ground
+    )
     assert region is not None
     # Section of |x| + |y| + |z| <= 1 at z = -0.5 (local): a diamond of half-diagonal 0.5.
     assert region.area == pytest.approx(0.5)

@@ -88,8 +88,9 @@ def test_empty_input() -> None:
 
 
 def test_nan_vertices() -> None:
-    triangles = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 0, 0], [np.nan, 0, 0],
-                                                               [0, 1, 0]]])
+    triangles = np.array(
+        [[[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 0, 0], [np.nan, 0, 0], [0, 1, 0]]]
+    )
     with pytest.raises(SceneError) as info:
         load_mesh(_binary_stl(triangles), "stl")
     assert info.value.field == "vertices"
@@ -97,8 +98,9 @@ def test_nan_vertices() -> None:
     obj = b"v 0 0 0\nv 1 0 0\nv 0 nan 0\nf 1 2 3\n"
     with pytest.raises(SceneError, match="NaN"):
         load_mesh(obj, "obj")
-    bad = trimesh.Trimesh(np.array([[0, 0, 0], [1, 0, 0], [0, np.inf, 0]]), np.array([[0, 1, 2]]),
-                          process=False)
+    bad = trimesh.Trimesh(
+        np.array([[0, 0, 0], [1, 0, 0], [0, np.inf, 0]]), np.array([[0, 1, 2]]), process=False
+    )
     with pytest.raises(SceneError, match="NaN or infinite"):
         build_scene(bad)
 

@@ -27,7 +27,13 @@ def _all_scenes(builtin_scenes: dict[str, Scene], hpp_scenes: dict[str, Scene]) 
 
 def test_builtin_ids() -> None:
     assert builtin_scene_ids() == (
-        "flat", "stairs", "chair", "climbing_wall", "twister", "rubble", "gaps"
+        "flat",
+        "stairs",
+        "chair",
+        "climbing_wall",
+        "twister",
+        "rubble",
+        "gaps",
     )
     with pytest.raises(SceneError, match="unknown built-in scene"):
         load_builtin_scene("moon")
@@ -59,7 +65,8 @@ def test_areas_add_up_to_qualifying_triangles(builtin_scenes, hpp_scenes) -> Non
         for surface in scene.surfaces:
             assert np.all(scene.face_surface[surface.triangles] == surface.id)
             assert surface.area > (
-                scene.params.support_min_area if surface.kind is SurfaceKind.SUPPORT
+                scene.params.support_min_area
+                if surface.kind is SurfaceKind.SUPPORT
                 else scene.params.lean_min_area
             )
 
@@ -89,7 +96,8 @@ def test_triangle_centroids_project_inside_their_surface(builtin_scenes, hpp_sce
 def test_stairs_one_surface_per_tread(builtin_scenes) -> None:
     scene = builtin_scenes["stairs"]
     horizontal = [
-        s for s in scene.surfaces_of(SurfaceKind.SUPPORT)
+        s
+        for s in scene.surfaces_of(SurfaceKind.SUPPORT)
         if s.normal[2] > 1 - 1e-9 and abs(s.centroid[1]) < 1e-9
     ]
     for step in range(1, b.STAIRS_STEPS + 1):
@@ -107,8 +115,11 @@ def test_stairs_one_surface_per_tread(builtin_scenes) -> None:
 
 def test_builtin_scene_contents(builtin_scenes) -> None:
     twister = builtin_scenes["twister"]
-    discs = [s for s in twister.surfaces_of(SurfaceKind.SUPPORT)
-             if abs(s.centroid[2] - b.TWISTER_HEIGHT) < 1e-9]
+    discs = [
+        s
+        for s in twister.surfaces_of(SurfaceKind.SUPPORT)
+        if abs(s.centroid[2] - b.TWISTER_HEIGHT) < 1e-9
+    ]
     assert len(discs) == len(b.twister_centers())
     centres = np.array(sorted(tuple(np.round(s.centroid[:2], 9)) for s in discs))
     assert np.allclose(centres, np.array(sorted(map(tuple, b.twister_centers()))), atol=1e-9)
@@ -116,8 +127,10 @@ def test_builtin_scene_contents(builtin_scenes) -> None:
         assert disc.area == pytest.approx(np.pi * b.TWISTER_RADIUS**2, rel=0.02)
 
     gaps = builtin_scenes["gaps"]
-    tops = sorted((s for s in gaps.surfaces_of(SurfaceKind.SUPPORT) if s.centroid[2] > 0.1),
-                  key=lambda s: s.centroid[0])
+    tops = sorted(
+        (s for s in gaps.surfaces_of(SurfaceKind.SUPPORT) if s.centroid[2] > 0.1),
+        key=lambda s: s.centroid[0],
+    )
     assert [round(s.centroid[2], 9) for s in tops] == list(b.GAPS_HEIGHTS)
 
     chair = builtin_scenes["chair"]
@@ -148,7 +161,8 @@ def test_hpp_scenes_give_sensible_surfaces(hpp_scenes) -> None:
         assert all(len(s.polygons) >= 1 for s in scene.surfaces), name
     bauzil = hpp_scenes["bauzil_stairs"]
     tread_heights = {
-        round(float(s.centroid[2]), 2) for s in bauzil.surfaces_of(SurfaceKind.SUPPORT)
+        round(float(s.centroid[2]), 2)
+        for s in bauzil.surfaces_of(SurfaceKind.SUPPORT)
         if s.normal[2] > 0.999 and s.area > 0.2
     }
     assert len(tread_heights) >= 5
@@ -191,8 +205,9 @@ def test_square_with_hole_keeps_the_hole() -> None:
 
     areas = sorted(signed_area(p) for p in surface.polygons_2d())
     assert areas == pytest.approx([-1.0, 9.0])
-    inside = surface.contains_projection(np.array([[0.5, 0.5, 1.0], [1.5, 1.5, 0.0],
-                                                   [2.5, 1.5, -1.0]]))
+    inside = surface.contains_projection(
+        np.array([[0.5, 0.5, 1.0], [1.5, 1.5, 0.0], [2.5, 1.5, -1.0]])
+    )
     assert inside.tolist() == [True, False, True]
     assert surface.contains_projection(np.array([[0.5, 0.5, 0.0]]), margin=0.6).tolist() == [False]
     snapped = surface.closest_point(np.array([[1.5, 1.4, 2.0], [4.0, 0.5, 0.0], [0.5, 0.5, 3.0]]))
@@ -204,8 +219,16 @@ def test_region_growing_respects_neighbour_margin() -> None:
     # one surface when the neighbour margin allows 20 degrees.
     angle = np.deg2rad(20.0)
     far = 1 + np.cos(angle)
-    vertices = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
-                         [far, 0, np.sin(angle)], [far, 1, np.sin(angle)]])
+    vertices = np.array(
+        [
+            [0, 0, 0],
+            [1, 0, 0],
+            [1, 1, 0],
+            [0, 1, 0],
+            [far, 0, np.sin(angle)],
+            [far, 1, np.sin(angle)],
+        ]
+    )
     faces = np.array([[0, 1, 2], [0, 2, 3], [1, 4, 5], [1, 5, 2]])
     mesh = trimesh.Trimesh(vertices, faces, process=False)
     assert len(build_scene(mesh).surfaces) == 2
@@ -222,15 +245,26 @@ def test_params_are_validated() -> None:
 
 
 def test_vertical_wall_is_lean_and_curved_surface_lifts_onto_mesh() -> None:
-    wall = trimesh.Trimesh(np.array([[0, 0, 0], [0, 1, 0], [0, 1, 1], [0, 0, 1.0]]),
-                           np.array([[0, 2, 1], [0, 3, 2]]), process=False)
+    wall = trimesh.Trimesh(
+        np.array([[0, 0, 0], [0, 1, 0], [0, 1, 1], [0, 0, 1.0]]),
+        np.array([[0, 2, 1], [0, 3, 2]]),
+        process=False,
+    )
     (surface,) = build_scene(wall).surfaces
     assert surface.kind is SurfaceKind.LEAN
     assert np.allclose(np.abs(surface.normal), [1, 0, 0])
     # A gently folded floor (5 degrees): one region, not flat; points lift onto the mesh.
     fold = np.deg2rad(5.0)
-    vertices = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
-                         [1 + np.cos(fold), 0, np.sin(fold)], [1 + np.cos(fold), 1, np.sin(fold)]])
+    vertices = np.array(
+        [
+            [0, 0, 0],
+            [1, 0, 0],
+            [1, 1, 0],
+            [0, 1, 0],
+            [1 + np.cos(fold), 0, np.sin(fold)],
+            [1 + np.cos(fold), 1, np.sin(fold)],
+        ]
+    )
     faces = np.array([[0, 1, 2], [0, 2, 3], [1, 4, 5], [1, 5, 2]])
     (floor,) = build_scene(trimesh.Trimesh(vertices, faces, process=False)).surfaces
     assert floor.flatness > 1e-3
@@ -253,9 +287,11 @@ def test_pinch_vertex_and_high_degree_fan() -> None:
     # A 200-triangle fan: the centre exceeds max_vertex_degree, edges still join the region.
     angles = np.linspace(0.0, 2.0 * np.pi, 201)[:-1]
     ring = np.column_stack([np.cos(angles), np.sin(angles), np.zeros(200)])
-    fan = trimesh.Trimesh(np.vstack([[0.0, 0.0, 0.0], ring]),
-                          np.array([[0, 1 + i, 1 + (i + 1) % 200] for i in range(200)]),
-                          process=False)
+    fan = trimesh.Trimesh(
+        np.vstack([[0.0, 0.0, 0.0], ring]),
+        np.array([[0, 1 + i, 1 + (i + 1) % 200] for i in range(200)]),
+        process=False,
+    )
     (disc,) = build_scene(fan, params=AffordanceParams(max_vertex_degree=8)).surfaces
     assert len(disc.triangles) == 200 and len(disc.polygons) == 1
     assert disc.area == pytest.approx(100 * np.sin(2 * np.pi / 200))

@@ -1,0 +1,43 @@
+"""Motion output shared by the planners: timed keyframes, contact phases and COM segments."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.contact.state import LimbContact
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class Keyframe:
+    """The whole body at time ``t`` (seconds from the motion's start).
+
+    q : (nq,) Pinocchio configuration (root position, root quaternion [x, y, z, w], joints).
+    contacts : limbs in contact at ``t``.
+    """
+
+    t: float
+    q: FloatArray
+    contacts: tuple[str, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class Phase:
+    """A time interval [t0, t1] during which the contacts do not change."""
+
+    t0: float
+    t1: float
+    contacts: tuple[LimbContact, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class ComSegment:
+    """One Bezier piece of the COM curve over [t0, t1]; control_points (d + 1, 3), metres."""
+
+    t0: float
+    t1: float
+    control_points: FloatArray
