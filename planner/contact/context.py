@@ -1,0 +1,173 @@
+"""The context shared by the contact primitives: scene, collision world, character, offline data.
+
+A :class:`ContactContext` owns Pinocchio scratch data and is therefore meant for one thread.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from planner.character import Character
+from planner.offline import OfflineData
+from planner.scene import CollisionWorld, Scene, SurfaceKind
+from planner.shapes import Box, Capsule
+from trajectory import Halfspaces
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+Obstacle = tuple[Box | Capsule, FloatArray]
+
+
+class FailureReason(enum.Enum):
+    """Why a contact primitive or a step failed."""
+
+    NOTHING_REACHABLE = "NOTHING_REACHABLE"
+    NOT_BALANCED = "NOT_BALANCED"
+    COLLISION = "COLLISION"
+    NOT_IN_CONTACT = "NOT_IN_CONTACT"
+    ALREADY_IN_CONTACT = "ALREADY_IN_CONTACT"
+    UNKNOWN_LIMB = "UNKNOWN_LIMB"
+    UNKNOWN_SURFACE = "UNKNOWN_SURFACE"
+    INVALID_STATE = "INVALID_STATE"
+    INVALID_ACTION = "INVALID_ACTION"
+    MOTION_FAILED = "MOTION_FAILED"
+
+
+@dataclass(frozen=True, slots=True)
+class ContactParams:
+    """Tuning of contact generation.
+
+    margin : robustness threshold of static equilibrium, N (smallest friction-cone generator
+        weight, Del Prete et al. 2016). com_shrink : m, the equilibrium polygon is shrunk by
+        this much when placing a COM. max_candidates : surface targets tried per creation.
+    surface_tolerance : m, contact points must lie this close to their surface.
+    normal_tolerance : rad between the effector contact normal and the surface normal.
+    clearance : m, contacts are placed this far above the surface (anchor: 1e-3).
+    lift : m, how far a freed effector is raised along the surface normal.
+    allowed_surfaces : surface ids usable for contacts (None: every surface of ``kinds``).
+    kinds : surface kinds usable for contacts. reach_radius : m, database samples this close
+        to a target count as reaching it with the root fixed.
+    """
+
+    margin: float = 1.0
+    com_shrink: float = 0.02
+    max_candidates: int = 6
+    surface_tolerance: float = 0.005
+    normal_tolerance: float = math.radians(5.0)
+    clearance: float = 1e-3
+    lift: float = 0.06
+    allowed_surfaces: tuple[int, ...] | None = None
+    kinds: tuple[SurfaceKind, ...] = (SurfaceKind.SUPPORT,)
+    reach_radius: float = 0.08
+    ik_iterations: int = 150
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class ContactContext:
+    """Everything the primitives need; build with :func:`make_context`.
+
+    world : scene collision world including obstacles (e.g. other characters).
+    surfaces : ids of the surfaces contacts may use. com_local : per limb, the COM half-spaces
+    in the effector frame (2PAC Eq. 3). limb_dofs : per limb, its velocity indices (k,).
+    """
+
+    scene: Scene
+    world: CollisionWorld
+    character: Character
+    data: OfflineData
+    params: ContactParams
+    surfaces: tuple[int, ...]
+    com_local: dict[str, Halfspaces]
+    pin_data: Any = field(repr=False)
+    geom_data: Any = field(repr=False)
+
+    @property
+    def model(self) -> Any:
+        """The character's Pinocchio model."""
+        return self.character.model
+
+    def limb_names(self) -> tuple[str, ...]:
+        """Limb names in the character's order."""
+        return tuple(limb.name for limb in self.character.limbs)
+
+    def has_limb(self, name: str) -> bool:
+        """Whether the character has a limb called ``name``."""
+        return any(limb.name == name for limb in self.character.limbs)
+
+    def with_obstacles(self, obstacles: Sequence[Obstacle]) -> ContactContext:
+        """The same context with extra obstacles in the collision world."""
+        return make_context(
+            self.scene,
+            self.character,
+            self.data,
+            self.params,
+            obstacles,
+            world=self.world,
+        )
+
+
+def make_context(
+    scene: Scene,
+    character: Character,
+    data: OfflineData,
+    params: ContactParams | None = None,
+    obstacles: Sequence[Obstacle] = (),
+    *,
+    world: CollisionWorld | None = None,
+) -> ContactContext:
+    """A context over ``scene`` with ``obstacles`` ((shape, (4, 4) world pose) pairs) added."""
+    p = params or ContactParams()
+    base = scene.collision if world is None else world
+    full = base.with_obstacles(list(obstacles)) if obstacles else base
+    if p.allowed_surfaces is None:
+        surfaces = tuple(s.id for s in scene.surfaces if s.kind in p.kinds)
+    else:
+        surfaces = tuple(int(i) for i in p.allowed_surfaces)
+    com_local = {}
+    for limb in character.limbs:
+        poly = data.com_constraint(limb.name).polytope
+        com_local[limb.name] = Halfspaces(np.asarray(poly.A), np.asarray(poly.b))
+    return ContactContext(
+        scene,
+        full,
+        character,
+        data,
+        p,
+        surfaces,
+        com_local,
+        character.model.createData(),
+        pin.GeometryData(character.geometry),
+    )
+
+
+def character_obstacles(character: Character, q: FloatArray) -> list[Obstacle]:
+    """The collision shapes of ``character`` posed at ``q`` (nq,) as world obstacles.
+
+    Boxes stay boxes; cylinders and spheres become their bounding capsules.
+    """
+    model, geometry = character.model, character.geometry
+    data = model.createData()
+    gdata = pin.GeometryData(geometry)
+    pin.updateGeometryPlacements(model, data, geometry, gdata, np.asarray(q, dtype=np.float64))
+    out: list[Obstacle] = []
+    for obj, placement in zip(geometry.geometryObjects, gdata.oMg, strict=True):
+        pose = np.asarray(placement.homogeneous, dtype=np.float64)
+        geom = obj.geometry
+        name = type(geom).__name__
+        if name == "Box":
+            out.append((Box(np.asarray(geom.halfSide, dtype=np.float64)), pose))
+        elif name == "Cylinder":
+            out.append((Capsule(float(geom.radius), float(geom.halfLength)), pose))
+        elif name == "Sphere":
+            out.append((Capsule(float(geom.radius), 0.0), pose))
+        elif name == "Capsule":
+            out.append((Capsule(float(geom.radius), float(geom.halfLength)), pose))
+    return out
