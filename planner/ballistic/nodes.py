@@ -141,25 +141,58 @@ class NodeContacts:
         }
 
 
+def hull_edges(polytope: ConvexPolytope) -> IntArray:
+    """(E, 2) vertex index pairs of the edges of a convex polytope's hull triangulation."""
+    from scipy.spatial import ConvexHull
+
+    tri = ConvexHull(polytope.vertices).simplices
+    pairs = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    pairs = np.sort(pairs, axis=1)
+    return np.asarray(np.unique(pairs, axis=0), dtype=np.int64)
+
+
+def _convex(loop: FloatArray) -> bool:
+    edge = np.roll(loop, -1, axis=0) - loop
+    turn = edge[:, 0] * np.roll(edge, -1, axis=0)[:, 1] - edge[:, 1] * np.roll(edge, -1, axis=0)[:, 0]
+    return bool(np.all(turn >= -1e-12))
+
+
+def _halfplanes(polygon: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Half-planes a x <= b (outward a) of a counter-clockwise convex polygon (k, 2)."""
+    edge = np.roll(polygon, -1, axis=0) - polygon
+    a = np.column_stack([edge[:, 1], -edge[:, 0]])
+    return a, np.einsum("ij,ij->i", a, polygon)
+
+
 def _section(
-    a_world: FloatArray, b_world: FloatArray, surface: Surface
+    world: FloatArray, edges: IntArray, surface: Surface, convex: bool
 ) -> tuple[float, FloatArray] | None:
-    """Area (m^2) and centroid (3,) of {A x <= b} ∩ surface, or None if empty."""
-    u, v = surface.basis[0], surface.basis[1]
-    a2 = np.stack([a_world @ u, a_world @ v], axis=1)
-    b2 = b_world - a_world @ surface.centroid
-    flat = np.linalg.norm(a2, axis=1) <= 1e-12
-    if np.any(b2[flat] < 0.0):
+    """Area (m^2) and centroid (3,) of hull(world) ∩ surface, or None if empty.
+
+    world : (V, 3) the hull's vertices in the world frame; edges : (E, 2) its edges. The plane
+    section of the hull is the convex polygon of the edge/plane crossings; it is clipped by the
+    surface polygon (convex surface) or clips each surface loop (otherwise)."""
+    dist = (world - surface.centroid) @ surface.normal
+    da, db = dist[edges[:, 0]], dist[edges[:, 1]]
+    cross = (da < 0.0) != (db < 0.0)
+    if np.count_nonzero(cross) < 3:
         return None
-    a2, b2 = a2[~flat], b2[~flat]
+    e = edges[cross]
+    t = (da[cross] / (da[cross] - db[cross]))[:, None]
+    pts = world[e[:, 0]] + t * (world[e[:, 1]] - world[e[:, 0]])
+    uv = (pts - surface.centroid) @ surface.basis[:2].T
+    centre = uv.mean(axis=0)
+    order = np.argsort(np.arctan2(uv[:, 1] - centre[1], uv[:, 0] - centre[0]))
+    section = uv[order]
     total = 0.0
     moment = np.zeros(2)
-    for loop in surface.polygons_uv:
-        side = loop @ a2.T - b2  # (k, m), <= 0 inside
-        if np.any(np.all(side > 0.0, axis=0)):
-            continue  # the whole loop lies outside one half-plane
-        cutting = np.any(side > 0.0, axis=0)
-        clipped = g2.clip_halfplanes(loop, a2[cutting], b2[cutting]) if cutting.any() else loop
+    if convex:
+        a2, b2 = _halfplanes(surface.polygons_uv[0])
+        pieces = [g2.clip_halfplanes(section, a2, b2)]
+    else:
+        a2, b2 = _halfplanes(section)
+        pieces = [g2.clip_halfplanes(loop, a2, b2) for loop in surface.polygons_uv]
+    for clipped in pieces:
         if len(clipped) < 3:
             continue
         area, mom = g2.area_moments(clipped)
@@ -183,7 +216,9 @@ class ReducedModel:
     scene: Scene
     character: Character
     workspaces: tuple[ConvexPolytope, ...]
+    edges: tuple[IntArray, ...]
     surfaces: tuple[Surface, ...]
+    convex: tuple[bool, ...]
     reference_points: FloatArray
     stance: IntArray
     mus: FloatArray
@@ -207,12 +242,12 @@ class ReducedModel:
         surfaces = tuple(s for s in scene.surfaces if s.kind in kinds)
         workspaces = tuple(reduced_hull(data.limb(limb.name).workspace) for limb in character.limbs)
         ref = np.zeros((len(character.limbs), 3))
-        root = frame_placement(character.model, character.q_ref, 1 if False else "root_joint")
-        inv = np.linalg.inv(root)
+        root_rot = quaternion_to_matrix(character.q_ref[3:7])
+        root_pos = character.q_ref[:3]
         for k, limb in enumerate(character.limbs):
             eff = frame_placement(character.model, character.q_ref, limb.effector_frame)
             point = eff[:3, :3] @ limb.offset + eff[:3, 3]
-            ref[k] = inv[:3, :3] @ point + inv[:3, 3]
+            ref[k] = root_rot.T @ (point - root_pos)
         stance = np.flatnonzero(ref[:, 2] <= ref[:, 2].min() + 0.05).astype(np.int64)
         mus = np.array([limb.mu if mu is None else mu for limb in character.limbs], np.float64)
         plane = np.array([[*s.normal, -float(s.normal @ s.centroid)] for s in surfaces])
@@ -226,7 +261,9 @@ class ReducedModel:
             scene,
             character,
             workspaces,
+            tuple(hull_edges(ws) for ws in workspaces),
             surfaces,
+            tuple(len(sf.polygons_uv) == 1 and _convex(sf.polygons_uv[0]) for sf in surfaces),
             ref,
             stance,
             mus,
@@ -265,11 +302,10 @@ class ReducedModel:
                     uv.max(axis=1) >= box[0], axis=1
                 )
                 straddle[rows[~overlap], s_idx] = False
-            a_root = ws.A
             for i, s_idx in zip(*np.nonzero(straddle), strict=True):
-                a_world = a_root @ rot[i].T
-                b_world = ws.b + a_world @ trans[i]
-                found = _section(a_world, b_world, self.surfaces[s_idx])
+                found = _section(
+                    world[i], self.edges[k], self.surfaces[s_idx], self.convex[s_idx]
+                )
                 if found is not None and found[0] > areas[i, k]:
                     areas[i, k] = found[0]
                     points[i, k] = found[1]

@@ -1,0 +1,264 @@
+"""Whole-body keyframes of jumps (jump paper section 5; anchor brief section 6).
+
+Per jump: takeoff (the stance configuration of the takeoff node), contact break, apex, contact
+creation and landing (the stance configuration of the landing node). Stance configurations put
+each contact limb on its estimated contact point: the best-ranked sample of the limb's database
+near the point (ranked by closeness to the reference posture) seeds an IK projection biased
+toward ``q_ref``; free limbs keep the reference (flexion) posture. The contact phases are found
+by stepping along the arc at the keyframe times, root exactly on the parabola, solving IK that
+holds the stance contacts, until it fails or a ``phase_fraction`` of the flight is used (the
+takeoff phase walks forward from 0, the landing phase backward from the landing time). Between
+the break and the creation frames the root stays on the parabola and the joints move linearly
+through an apex posture blended toward the reference.
+
+Contacts are held in position for point contacts and in full placement for patches.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.ballistic.arc import slerp
+from planner.ballistic.steering import Jump
+from planner.character import Character
+from planner.kinematics import (
+    ContactNormalTask,
+    FramePlacementTask,
+    FramePositionTask,
+    PostureTask,
+    Priority,
+    frame_placements,
+    keyframe_times,
+    solve_ik,
+)
+from planner.kinematics.tasks import Task
+from planner.motion import Keyframe
+from planner.offline import OfflineData
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+IntArray = NDArray[np.int64]
+
+
+@dataclass(frozen=True, slots=True)
+class Stance:
+    """A whole-body contact configuration at a node.
+
+    q : (nq,) configuration. achieved : (L,) limbs whose contact IK succeeded. placements :
+    (L, 4, 4) effector frame poses at ``q`` (world). points : (L, 3) the targeted contact points.
+    """
+
+    q: FloatArray
+    achieved: BoolArray
+    placements: FloatArray
+    points: FloatArray
+
+
+@dataclass(frozen=True, slots=True)
+class JumpFrames:
+    """Keyframes of one jump (absolute times) and its key instants (absolute, s)."""
+
+    frames: tuple[Keyframe, ...]
+    contact_break: float
+    apex_time: float
+    contact_create: float
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class JumpAnimator:
+    """Keyframe generator for one character.
+
+    rate : keyframes per second. phase_fraction : at most this fraction of the flight is spent
+    in each contact phase. search_radius : m, database samples this close to a contact point
+    seed its projection. apex_blend : weight of the reference posture at the apex.
+    """
+
+    character: Character
+    data: OfflineData
+    rate: float = 30.0
+    phase_fraction: float = 1.0 / 3.0
+    search_radius: float = 0.08
+    apex_blend: float = 0.4
+    tolerance: float = 1e-3
+    angular_tolerance: float = 1e-2
+
+    def _contact_task(self, k: int, point: FloatArray, normal: FloatArray) -> Task:
+        limb = self.character.limbs[k]
+        if limb.contact == "point":
+            return FramePositionTask(limb.effector_frame, point, limb.offset, Priority.CONTACT)
+        return ContactNormalTask(
+            limb.effector_frame, point, normal, limb.normal, limb.offset, Priority.CONTACT
+        )
+
+    def _posture(self, dofs: IntArray) -> PostureTask:
+        weights = np.zeros(self.character.model.nv)
+        weights[dofs] = 1.0
+        return PostureTask(self.character.q_ref, weights, gain=0.3)
+
+    def stance(
+        self,
+        position: FloatArray,
+        quaternion: FloatArray,
+        active: BoolArray,
+        points: FloatArray,
+        normals: FloatArray,
+    ) -> Stance:
+        """Contact configuration with the root at (position (3,), quaternion (4,)) and the
+        ``active`` (L,) limbs on ``points`` (L, 3) with surface ``normals`` (L, 3)."""
+        char = self.character
+        q = np.array(char.q_ref, dtype=np.float64)
+        q[:3] = position
+        q[3:7] = quaternion
+        x, y, z, w = quaternion
+        rot = np.array(
+            [
+                [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+            ]
+        )
+        achieved = np.zeros(len(char.limbs), dtype=bool)
+        for k in np.flatnonzero(active):
+            limb = char.limbs[k]
+            database = self.data.limb(limb.name).database
+            target = rot.T @ (points[k] - position)
+            near = database.samples_near(target, self.search_radius)
+            seeds: list[int] = [int(near[0])] if len(near) else []
+            if len(near) > 1:
+                gap = np.linalg.norm(database.positions[near] - target, axis=1)
+                nearest = int(near[int(np.argmin(gap))])
+                if nearest != seeds[0]:
+                    seeds.append(nearest)
+            seeds_q = [database.q[i] for i in seeds] or [q[limb.idx_q]]
+            task = self._contact_task(int(k), points[k], normals[k])
+            for seed in seeds_q:
+                trial = q.copy()
+                trial[limb.idx_q] = seed
+                result = solve_ik(
+                    char.model,
+                    trial,
+                    [task, self._posture(limb.idx_v)],
+                    active=limb.idx_v,
+                    max_iterations=60,
+                    tolerance=1e-4,
+                    angular_tolerance=1e-3,
+                )
+                if result.success:
+                    q = np.array(result.q)
+                    achieved[k] = True
+                    break
+        frames = [limb.effector_frame for limb in char.limbs]
+        placements = frame_placements(char.model, q, frames)
+        return Stance(q, achieved, placements, np.asarray(points, dtype=np.float64))
+
+    def _holds(self, stance: Stance) -> tuple[list[Task], IntArray]:
+        tasks: list[Task] = []
+        dofs: list[IntArray] = []
+        for k in np.flatnonzero(stance.achieved):
+            limb = self.character.limbs[k]
+            if limb.contact == "point":
+                tasks.append(
+                    FramePositionTask(
+                        limb.effector_frame, stance.points[k], limb.offset, Priority.CONTACT
+                    )
+                )
+            else:
+                tasks.append(
+                    FramePlacementTask(limb.effector_frame, stance.placements[k], Priority.CONTACT)
+                )
+            dofs.append(limb.idx_v)
+        all_dofs = np.concatenate(dofs) if dofs else np.zeros(0, np.int64)
+        return tasks, np.asarray(all_dofs, dtype=np.int64)
+
+    def _walk(
+        self,
+        jump: Jump,
+        quat0: FloatArray,
+        quat1: FloatArray,
+        stance: Stance,
+        times: FloatArray,
+    ) -> list[tuple[float, FloatArray]]:
+        """Hold ``stance`` along the arc at ``times`` (in walking order) until IK fails."""
+        tasks, dofs = self._holds(stance)
+        out: list[tuple[float, FloatArray]] = []
+        if not tasks:
+            return out
+        posture = self._posture(dofs)
+        q_prev = stance.q
+        for tau in times:
+            q = np.array(q_prev)
+            q[:3] = jump.position(float(tau))
+            q[3:7] = slerp(quat0, quat1, np.array([tau / jump.duration]))[0]
+            result = solve_ik(
+                self.character.model,
+                q,
+                [*tasks, posture],
+                active=dofs,
+                max_iterations=30,
+                tolerance=self.tolerance,
+                angular_tolerance=self.angular_tolerance,
+            )
+            if not result.success:
+                break
+            q_prev = np.array(result.q)
+            out.append((float(tau), q_prev))
+        return out
+
+    def animate(
+        self,
+        jump: Jump,
+        quat0: FloatArray,
+        quat1: FloatArray,
+        takeoff: Stance,
+        landing: Stance,
+        t0: float,
+    ) -> JumpFrames:
+        """Keyframes of ``jump`` from absolute time ``t0``; root orientation SLERPed quat0 ->
+        quat1 (as in the arc check); the first frame is ``takeoff.q``, the last ``landing.q``."""
+        big_t = jump.duration
+        grid = keyframe_times(0.0, big_t, self.rate)
+        cap = self.phase_fraction * big_t
+        forward = self._walk(jump, quat0, quat1, takeoff, grid[(grid > 0) & (grid <= cap)])
+        backward = self._walk(
+            jump, quat0, quat1, landing, grid[(grid < big_t) & (grid >= big_t - cap)][::-1]
+        )
+        t_break, q_break = forward[-1] if forward else (0.0, takeoff.q)
+        t_create, q_create = backward[-1] if backward else (big_t, landing.q)
+        tau_apex = float(np.clip(jump.v0[2] / jump.g, 0.0, big_t))
+        j_break, j_create = q_break[7:], q_create[7:]
+        knots_t = [t_break]
+        knots_j = [j_break]
+        if t_break < tau_apex < t_create:
+            frac = (tau_apex - t_break) / (t_create - t_break)
+            mid = (1.0 - frac) * j_break + frac * j_create
+            knots_t.append(tau_apex)
+            knots_j.append((1.0 - self.apex_blend) * mid + self.apex_blend * self.character.q_ref[7:])
+        knots_t.append(t_create)
+        knots_j.append(j_create)
+        kt = np.array(knots_t)
+        kj = np.array(knots_j)
+
+        take_names = tuple(
+            self.character.limbs[k].name for k in np.flatnonzero(takeoff.achieved)
+        )
+        land_names = tuple(self.character.limbs[k].name for k in np.flatnonzero(landing.achieved))
+        frames: list[Keyframe] = [Keyframe(t0, np.array(takeoff.q), take_names)]
+        frames.extend(Keyframe(t0 + tau, q, take_names) for tau, q in forward)
+        flight = grid[(grid > t_break) & (grid < t_create)]
+        if len(kt) == 3:
+            flight = np.unique(np.append(flight, tau_apex))
+        for tau in flight:
+            q = np.empty_like(takeoff.q)
+            q[:3] = jump.position(float(tau))
+            q[3:7] = slerp(quat0, quat1, np.array([tau / big_t]))[0]
+            q[7:] = [np.interp(tau, kt, kj[:, j]) for j in range(kj.shape[1])]
+            frames.append(Keyframe(t0 + float(tau), q, ()))
+        frames.extend(Keyframe(t0 + tau, q, land_names) for tau, q in reversed(backward))
+        frames.append(Keyframe(t0 + big_t, np.array(landing.q), land_names))
+        return JumpFrames(tuple(frames), t0 + t_break, t0 + tau_apex, t0 + t_create)
+
+
+__all__ = ["JumpAnimator", "JumpFrames", "Stance"]

@@ -1,0 +1,192 @@
+"""Validity checks of contact states: contacts on surfaces, collisions, balance, kinematics.
+
+All positions are world frame, metres; COM polytopes follow 2PAC Eq. 3-4.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from planner.contact.context import ContactContext
+from planner.contact.state import ContactState, LimbContact
+from trajectory import (
+    Contact,
+    ContactPhase,
+    EffectorConstraint,
+    Halfspaces,
+    equilibrium_halfspaces,
+    equilibrium_margin,
+    kinematic_polytope,
+)
+
+FloatArray = NDArray[np.float64]
+
+_KIN_TOL = 1e-3  # m, slack allowed on the learned COM polytopes
+
+
+def forward(ctx: ContactContext, q: FloatArray) -> None:
+    """Update ``ctx.pin_data`` frames for ``q`` (nq,)."""
+    pin.framesForwardKinematics(ctx.model, ctx.pin_data, q)
+
+
+def effector_pose(ctx: ContactContext, limb: str, q: FloatArray | None = None) -> FloatArray:
+    """(4, 4) world pose of ``limb``'s effector frame (at ``q`` when given, else last FK)."""
+    if q is not None:
+        forward(ctx, q)
+    fid = ctx.character.limb(limb).frame_id
+    return np.asarray(ctx.pin_data.oMf[fid].homogeneous, dtype=np.float64).copy()
+
+
+def com_of(ctx: ContactContext, q: FloatArray) -> FloatArray:
+    """(3,) whole-body COM at ``q``."""
+    return np.asarray(pin.centerOfMass(ctx.model, ctx.pin_data, q), dtype=np.float64).copy()
+
+
+def hold_error(ctx: ContactContext, q: FloatArray, contacts: Sequence[LimbContact]) -> float:
+    """Largest distance (m) between a contact's points and where ``q`` puts them."""
+    forward(ctx, q)
+    worst = 0.0
+    for c in contacts:
+        pose = effector_pose(ctx, c.limb)
+        pts = ctx.character.limb(c.limb).contact_points() @ pose[:3, :3].T + pose[:3, 3]
+        worst = max(worst, float(np.max(np.linalg.norm(pts - c.points, axis=1))))
+    return worst
+
+
+def make_contact(ctx: ContactContext, limb: str, pose: FloatArray, surface: int) -> LimbContact:
+    """The contact of ``limb`` with its effector at ``pose`` (4, 4) on scene ``surface``."""
+    spec = ctx.character.limb(limb)
+    pts = spec.contact_points() @ pose[:3, :3].T + pose[:3, 3]
+    normal = ctx.scene.surfaces[surface].normal
+    return LimbContact(limb, pose, pts, normal, float(spec.mu), int(surface))
+
+
+def phase_of(ctx: ContactContext, contacts: Sequence[LimbContact]) -> ContactPhase:
+    """The trajectory contact phase of ``contacts`` (mass of the character)."""
+    return ContactPhase(
+        [Contact(c.points, c.normal, c.mu) for c in contacts], float(ctx.character.mass)
+    )
+
+
+def kinematics_of(ctx: ContactContext, contacts: Sequence[LimbContact]) -> Halfspaces:
+    """World ``K c <= k`` of the COM for the effectors of ``contacts`` (Eq. 4)."""
+    if not contacts:
+        return Halfspaces(np.zeros((0, 3)), np.zeros(0))
+    return kinematic_polytope(
+        [
+            EffectorConstraint(ctx.com_local[c.limb], c.placement[:3, :3], c.placement[:3, 3])
+            for c in contacts
+        ]
+    )
+
+
+def shrunk_equilibrium(ctx: ContactContext, contacts: Sequence[LimbContact]) -> Halfspaces:
+    """The static-equilibrium prism of ``contacts`` shrunk by ``params.com_shrink``."""
+    eq = equilibrium_halfspaces(phase_of(ctx, contacts))
+    norms = np.linalg.norm(eq.A, axis=1)
+    return Halfspaces(eq.A, eq.b - ctx.params.com_shrink * norms)
+
+
+def balance_margin(ctx: ContactContext, contacts: Sequence[LimbContact], com: FloatArray) -> float:
+    """Robustness (N) of static equilibrium of ``com`` (3,) on ``contacts``; -inf if none."""
+    if not contacts:
+        return -np.inf
+    return float(equilibrium_margin(phase_of(ctx, contacts), com).margin)
+
+
+def contact_on_surface(ctx: ContactContext, contact: LimbContact) -> bool:
+    """Contact points within ``surface_tolerance`` of the surface, inside it, normals aligned."""
+    if contact.surface < 0 or contact.surface >= len(ctx.scene.surfaces):
+        return False
+    surface = ctx.scene.surfaces[contact.surface]
+    if np.any(np.abs(surface.height(contact.points)) > ctx.params.surface_tolerance):
+        return False
+    if not bool(np.all(surface.contains_projection(contact.points))):
+        return False
+    spec = ctx.character.limb(contact.limb)
+    limit = np.cos(ctx.params.normal_tolerance)
+    if float(contact.normal @ surface.normal) < limit:
+        return False
+    if spec.contact == "point":
+        return True
+    axis = contact.placement[:3, :3] @ spec.normal
+    return float(axis @ surface.normal) >= limit
+
+
+def _collide(ctx: ContactContext, geometry: object, matrix: FloatArray) -> bool:
+    # CollisionWorld has no public query for a raw coal geometry; reuse its private one.
+    return bool(ctx.world._collide(geometry, matrix))
+
+
+def scene_collisions(ctx: ContactContext, q: FloatArray) -> list[str]:
+    """Names of the character's collision geometries touching the scene or obstacles at q."""
+    geometry = ctx.character.geometry
+    pin.updateGeometryPlacements(ctx.model, ctx.pin_data, geometry, ctx.geom_data, q)
+    hits = []
+    for obj, placement in zip(geometry.geometryObjects, ctx.geom_data.oMg, strict=True):
+        if _collide(ctx, obj.geometry, np.asarray(placement.homogeneous)):
+            hits.append(str(obj.name))
+    return hits
+
+
+def self_collides(ctx: ContactContext, q: FloatArray) -> bool:
+    """Whether two non-adjacent body shapes intersect at ``q``."""
+    return bool(
+        pin.computeCollisions(
+            ctx.model, ctx.pin_data, ctx.character.geometry, ctx.geom_data, q, True
+        )
+    )
+
+
+def collision_free(ctx: ContactContext, q: FloatArray) -> bool:
+    """No self-collision and no contact of the body with the scene or obstacles at ``q``."""
+    return not self_collides(ctx, q) and not scene_collisions(ctx, q)
+
+
+def within_limits(ctx: ContactContext, q: FloatArray, tol: float = 1e-6) -> bool:
+    """Joint values of ``q`` inside the character's limits."""
+    lo, hi = ctx.model.lowerPositionLimit[7:], ctx.model.upperPositionLimit[7:]
+    return bool(np.all(q[7:] >= lo - tol) and np.all(q[7:] <= hi + tol))
+
+
+@dataclass(frozen=True, slots=True)
+class StateReport:
+    """Validity of a state: each flag True when the check passes; margin in N."""
+
+    on_surfaces: bool
+    held: bool
+    collision_free: bool
+    balanced: bool
+    kinematic: bool
+    margin: float
+    com: FloatArray
+
+    @property
+    def valid(self) -> bool:
+        """All checks pass."""
+        return (
+            self.on_surfaces
+            and self.held
+            and self.collision_free
+            and self.balanced
+            and self.kinematic
+        )
+
+
+def check_state(ctx: ContactContext, state: ContactState, hold_tol: float = 1e-3) -> StateReport:
+    """Check ``state``: contacts on surfaces, effectors at their contacts (``hold_tol`` m),
+    no collision, balance with ``params.margin``, COM inside the kinematic polytopes."""
+    q = state.q
+    held = hold_error(ctx, q, state.contacts) <= hold_tol
+    on = all(contact_on_surface(ctx, c) for c in state.contacts)
+    com = com_of(ctx, q)
+    margin = balance_margin(ctx, state.contacts, com)
+    kin = kinematics_of(ctx, state.contacts)
+    kin_ok = bool(kin.violation(com) <= _KIN_TOL)
+    free = collision_free(ctx, q)
+    return StateReport(on, held, free, margin >= ctx.params.margin, kin_ok, margin, com)

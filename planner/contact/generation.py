@@ -1,0 +1,526 @@
+"""Contact primitives: maintain contacts under a new root, create one contact, break one.
+
+Anchor: contact-planner-anchor sections 4-6 (candidates near allowed surfaces, scored by
+closeness to the posture and to a target, projected by IK, checked for collision, static
+equilibrium with a robustness margin and 2PAC quasi-static reachability, Eq. 5-6).
+Every primitive returns a structured result; none raises on an infeasible request.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from planner.contact.checks import (
+    balance_margin,
+    hold_error,
+    check_state,
+    collision_free,
+    com_of,
+    contact_on_surface,
+    effector_pose,
+    forward,
+    kinematics_of,
+    make_contact,
+    phase_of,
+    shrunk_equilibrium,
+)
+from planner.contact.context import (
+    ContactContext,
+    ContactParams,
+    FailureReason,
+    character_obstacles,
+    make_context,
+)
+from planner.contact.state import ContactState, LimbContact
+from planner.kinematics import (
+    ComTask,
+    ContactNormalTask,
+    FramePlacementTask,
+    FramePositionTask,
+    IkResult,
+    PostureTask,
+    Priority,
+    Task,
+    project_contact,
+    solve_ik,
+)
+from planner.scene import Surface
+from trajectory import equilibrium_halfspaces, transition_point
+
+FloatArray = NDArray[np.float64]
+
+__all__ = [
+    "ContactAttempt",
+    "ContactContext",
+    "ContactParams",
+    "FailureReason",
+    "break_contact",
+    "character_obstacles",
+    "create_contact",
+    "maintain",
+    "make_context",
+    "stand_state",
+]
+
+_HOLD_TOL = 1e-3  # m, a held contact further than this from its placement is lost
+_STAGE = {
+    FailureReason.NOTHING_REACHABLE: 0,
+    FailureReason.NOT_IN_CONTACT: 1,
+    FailureReason.COLLISION: 2,
+    FailureReason.NOT_BALANCED: 3,
+}
+
+
+@dataclass(frozen=True, slots=True)
+class ContactAttempt:
+    """Outcome of a primitive.
+
+    ok : success. state : the new state (the input state on failure). reason : why it
+    failed (None on success). candidates_tried : surface targets projected. message : detail.
+    limb : the limb acted on. surface : surface id of a created contact (-1 otherwise).
+    """
+
+    ok: bool
+    state: ContactState
+    reason: FailureReason | None
+    candidates_tried: int
+    message: str
+    limb: str
+    surface: int = -1
+
+
+def _fail(
+    state: ContactState, reason: FailureReason, limb: str, message: str, tried: int = 0
+) -> ContactAttempt:
+    return ContactAttempt(False, state, reason, tried, message, limb)
+
+
+def posture_task(ctx: ContactContext, gain: float = 0.3) -> PostureTask:
+    """Pull toward the character's reference posture, root free."""
+    weights = np.ones(ctx.model.nv)
+    weights[:6] = 0.0
+    return PostureTask(ctx.character.q_ref, weights, gain=gain)
+
+
+def hold_tasks(contacts: Sequence[LimbContact], ctx: ContactContext) -> list[Task]:
+    """Contact-tier tasks keeping each contact's effector at its placement."""
+    out: list[Task] = []
+    for c in contacts:
+        spec = ctx.character.limb(c.limb)
+        if spec.contact == "point":
+            goal = c.placement[:3, :3] @ spec.offset + c.placement[:3, 3]
+            out.append(FramePositionTask(spec.frame_id, goal, spec.offset, Priority.CONTACT))
+        else:
+            out.append(FramePlacementTask(spec.frame_id, c.placement, Priority.CONTACT))
+    return out
+
+
+def balance_ik(
+    ctx: ContactContext,
+    q: FloatArray,
+    contacts: Sequence[LimbContact],
+    com: FloatArray,
+    extra: Sequence[Task] = (),
+    axes: tuple[bool, bool, bool] = (True, True, True),
+    moving: Sequence[str] = (),
+) -> IkResult:
+    """Whole-body IK: hold ``contacts``, COM to ``com`` (3,), then ``extra`` and the posture."""
+    tasks: list[Task] = [*hold_tasks(contacts, ctx), ComTask(com, axes), *extra]
+    tasks.append(posture_task(ctx))
+    return solve_ik(
+        ctx.model,
+        q,
+        tasks,
+        data=ctx.pin_data,
+        active=active_dofs(ctx, [*(c.limb for c in contacts), *moving]),
+        max_iterations=ctx.params.ik_iterations,
+    )
+
+
+def active_dofs(ctx: ContactContext, limbs: Sequence[str]) -> NDArray[np.int64]:
+    """Velocity indices (k,) of every dof except those of limbs not in ``limbs``."""
+    mask = np.ones(ctx.model.nv, dtype=bool)
+    for spec in ctx.character.limbs:
+        if spec.name not in limbs:
+            mask[spec.idx_v] = False
+    return np.flatnonzero(mask).astype(np.int64)
+
+
+def _holds(ctx: ContactContext, q: FloatArray, contacts: Sequence[LimbContact]) -> bool:
+    return hold_error(ctx, q, contacts) <= _HOLD_TOL
+
+
+def maintain(
+    ctx: ContactContext, state: ContactState, root_pose: FloatArray
+) -> tuple[ContactState, tuple[str, ...]]:
+    """Move the root to ``root_pose`` (4, 4) and re-solve the contact limbs (root fixed).
+
+    Returns the new state with the contacts that still hold, and the limbs lost.
+    """
+    q = np.array(state.q)
+    q[:3] = root_pose[:3, 3]
+    q[3:7] = pin.Quaternion(np.asarray(root_pose[:3, :3])).coeffs()
+    if not state.contacts:
+        return ContactState(q, ()), ()
+    active = np.concatenate([ctx.character.limb(c.limb).idx_v for c in state.contacts])
+    result = solve_ik(
+        ctx.model,
+        q,
+        [*hold_tasks(state.contacts, ctx), posture_task(ctx)],
+        data=ctx.pin_data,
+        active=active,
+        max_iterations=ctx.params.ik_iterations,
+    )
+    kept: list[LimbContact] = []
+    lost: list[str] = []
+    for c, residual in zip(state.contacts, result.residuals, strict=False):
+        if residual[0] <= _HOLD_TOL:
+            kept.append(c)
+        else:
+            lost.append(c.limb)
+    return ContactState(np.array(result.q), tuple(kept)), tuple(lost)
+
+
+def _point_on(surface: Surface, desired: FloatArray, radius: float) -> FloatArray | None:
+    """A point of ``surface`` near ``desired`` (3,) with a disc of ``radius`` inside it."""
+    closest = surface.closest_point(desired[None])[0]
+    angles = np.linspace(0.0, 2 * np.pi, 8, endpoint=False)
+    ring = np.stack([np.cos(angles), np.sin(angles)], axis=1) * radius
+    for k in (0.0, 0.25, 0.5, 0.75, 1.0):
+        p = closest + k * (surface.centroid - closest)
+        coords = surface.to_plane(p[None])[0] + ring
+        if bool(np.all(surface.contains_projection(surface.from_plane(coords)))):
+            return np.asarray(surface.closest_point(p[None])[0], dtype=np.float64)
+    return None
+
+
+def _patch_radius(ctx: ContactContext, limb: str) -> float:
+    spec = ctx.character.limb(limb)
+    pts = spec.contact_points() - spec.offset
+    return float(np.max(np.linalg.norm(pts[:, :2], axis=1))) + 0.001
+
+
+@dataclass(frozen=True, slots=True)
+class _Candidate:
+    score: float
+    surface: int
+    point: FloatArray
+    seeds: NDArray[np.int64]
+
+
+def _candidates(
+    ctx: ContactContext,
+    state: ContactState,
+    limb: str,
+    rng: np.random.Generator,
+    surfaces: Sequence[int],
+    target: FloatArray | None,
+    lookahead: FloatArray | None,
+) -> list[_Candidate]:
+    spec = ctx.character.limb(limb)
+    db = ctx.data.limb(limb).database
+    forward(ctx, state.q)
+    root = np.asarray(ctx.pin_data.oMi[1].homogeneous, dtype=np.float64)
+    current = effector_pose(ctx, limb)[:3, 3]
+    nominal = root[:3, :3] @ db.positions[0] + root[:3, 3]
+    base = np.asarray(ctx.pin_data.oMi[ctx.model.getJointId(spec.root_joint)].translation)
+    hip_root = root[:3, :3].T @ (base - root[:3, 3])
+    reach = float(np.max(np.linalg.norm(db.positions - hip_root, axis=1))) + 0.5
+    radius = _patch_radius(ctx, limb)
+    desired = target if target is not None else 0.5 * (current + nominal)
+    others = [c for c in state.contacts if c.limb != limb]
+    out: list[_Candidate] = []
+    for sid in surfaces:
+        surface = ctx.scene.surfaces[sid]
+        point = _point_on(surface, desired, radius)
+        if point is None:
+            continue
+        if np.linalg.norm(point - base) > reach:
+            continue
+        if any(
+            np.min(np.linalg.norm(c.points - point, axis=1)) < radius + 0.06 for c in others
+        ):
+            continue
+        local = root[:3, :3].T @ (point - root[:3, 3])
+        seeds = db.samples_near(local[None], ctx.params.reach_radius)[:4]
+        score = float(np.linalg.norm(point - nominal))
+        score += 0.5 * float(np.linalg.norm(point - current))
+        if target is not None:
+            score += 2.0 * float(np.linalg.norm(point - target))
+        if lookahead is not None:
+            score += float(np.linalg.norm(point - lookahead))
+        if len(seeds) == 0:
+            score += 0.5  # needs the whole body
+        score += 0.05 * float(rng.random())
+        out.append(_Candidate(score, sid, point, seeds))
+    out.sort(key=lambda c: c.score)
+    return out[: ctx.params.max_candidates]
+
+
+def _contact_task(ctx: ContactContext, limb: str, point: FloatArray, normal: FloatArray) -> Task:
+    spec = ctx.character.limb(limb)
+    if spec.contact == "point":
+        goal = point + ctx.params.clearance * normal
+        return FramePositionTask(spec.frame_id, goal, spec.offset, Priority.CONTACT)
+    return ContactNormalTask(
+        spec.frame_id,
+        point + ctx.params.clearance * normal,
+        normal,
+        spec.normal,
+        spec.offset,
+        Priority.CONTACT,
+    )
+
+
+def _project(
+    ctx: ContactContext, state: ContactState, limb: str, cand: _Candidate
+) -> FloatArray | None:
+    """Configurations putting ``limb`` on the candidate: root fixed first, else whole body."""
+    spec = ctx.character.limb(limb)
+    db = ctx.data.limb(limb).database
+    normal = ctx.scene.surfaces[cand.surface].normal
+    for idx in cand.seeds[:2]:
+        q0 = np.array(state.q)
+        q0[spec.idx_q] = db.q[idx]
+        if spec.contact == "point":
+            res = solve_ik(
+                ctx.model,
+                q0,
+                [_contact_task(ctx, limb, cand.point, normal), posture_task(ctx)],
+                data=ctx.pin_data,
+                active=spec.idx_v,
+                max_iterations=ctx.params.ik_iterations,
+            )
+            if res.success:
+                return np.array(res.q)
+            continue
+        res = project_contact(
+            ctx.model,
+            q0,
+            spec.root_joint,
+            spec.effector_frame,
+            cand.point,
+            normal,
+            contact_normal=spec.normal,
+            contact_offset=spec.offset,
+            clearance=ctx.params.clearance,
+            reference=ctx.character.q_ref,
+            posture_weight=0.3,
+            data=ctx.pin_data,
+        )
+        if res.success:
+            return np.array(res.q)
+    com = com_of(ctx, state.q)
+    res = balance_ik(
+        ctx,
+        np.array(state.q),
+        state.contacts,
+        com,
+        extra=[_contact_task(ctx, limb, cand.point, normal)],
+        axes=(True, True, False),
+        moving=(limb,),
+    )
+    if res.residuals[len(state.contacts) + 1, 0] <= 1e-3 and _holds(ctx, res.q, state.contacts):
+        return np.array(res.q)
+    return None
+
+
+def _balanced_after_create(
+    ctx: ContactContext, before: ContactState, q: FloatArray, contact: LimbContact
+) -> tuple[FloatArray | None, FailureReason | None]:
+    """Make the COM of ``q`` balanced on the old contacts, inside both kinematic sets."""
+    after = (*before.contacts, contact)
+    kin = kinematics_of(ctx, after)
+    com = com_of(ctx, q)
+    if (
+        balance_margin(ctx, before.contacts, com) >= ctx.params.margin
+        and kin.violation(com) <= 1e-3
+    ):
+        return q, None
+    tp = transition_point(
+        shrunk_equilibrium(ctx, before.contacts),
+        shrunk_equilibrium(ctx, after),
+        com,
+        kin_prev=kinematics_of(ctx, before.contacts),
+        kin_next=kin,
+    )
+    if not tp.feasible:
+        return None, FailureReason.NOT_BALANCED
+    res = balance_ik(ctx, q, after, tp.point)
+    q2 = np.array(res.q)
+    if not _holds(ctx, q2, after):
+        return None, FailureReason.NOT_BALANCED
+    com2 = com_of(ctx, q2)
+    if (
+        balance_margin(ctx, before.contacts, com2) < ctx.params.margin
+        or kin.violation(com2) > 1e-3
+    ):
+        return None, FailureReason.NOT_BALANCED
+    return q2, None
+
+
+def create_contact(
+    ctx: ContactContext,
+    state: ContactState,
+    limb: str,
+    *,
+    rng: np.random.Generator,
+    surface: int | None = None,
+    target: FloatArray | None = None,
+    lookahead: FloatArray | None = None,
+) -> ContactAttempt:
+    """Put the free ``limb`` on an allowed surface (``surface`` id, or near ``target`` (3,)).
+
+    Candidates are surface points near the limb's reach, scored by distance to the limb's
+    nominal position (reference posture at the current root), to ``target`` and to
+    ``lookahead`` (3,); each is projected by IK (limb only from database seeds, else whole
+    body with the other contacts held) and checked: contact on the surface, no collision,
+    the new COM balanced on the old contacts with the margin and inside the new kinematic set
+    (so the 2PAC transition exists). The first candidate passing wins.
+    """
+    if not ctx.has_limb(limb):
+        return _fail(state, FailureReason.UNKNOWN_LIMB, limb, f"unknown limb {limb!r}")
+    if state.contact(limb) is not None:
+        return _fail(state, FailureReason.ALREADY_IN_CONTACT, limb, f"{limb} is in contact")
+    if surface is not None:
+        if surface not in ctx.surfaces:
+            return _fail(
+                state, FailureReason.UNKNOWN_SURFACE, limb, f"surface {surface} not allowed"
+            )
+        surfaces: Sequence[int] = (surface,)
+    else:
+        surfaces = ctx.surfaces
+    tgt = None if target is None else np.asarray(target, dtype=np.float64).reshape(3)
+    look = None if lookahead is None else np.asarray(lookahead, dtype=np.float64).reshape(3)
+    cands = _candidates(ctx, state, limb, rng, surfaces, tgt, look)
+    if not cands:
+        return _fail(state, FailureReason.NOTHING_REACHABLE, limb, "no surface within reach")
+    worst = FailureReason.NOTHING_REACHABLE
+    c_prev = com_of(ctx, state.q)
+    for tried, cand in enumerate(cands, start=1):
+        q = _project(ctx, state, limb, cand)
+        if q is None:
+            continue
+        pose = effector_pose(ctx, limb, q)
+        contact = make_contact(ctx, limb, pose, cand.surface)
+        if not contact_on_surface(ctx, contact):
+            worst = max(worst, FailureReason.NOT_IN_CONTACT, key=_STAGE.__getitem__)
+            continue
+        q2, why = _balanced_after_create(ctx, state, q, contact)
+        if q2 is None:
+            worst = max(worst, why or FailureReason.NOT_BALANCED, key=_STAGE.__getitem__)
+            continue
+        if not collision_free(ctx, q2):
+            worst = max(worst, FailureReason.COLLISION, key=_STAGE.__getitem__)
+            continue
+        new = state.with_contact(contact, q2)
+        tp = transition_point(
+            equilibrium_halfspaces(phase_of(ctx, state.contacts)),
+            equilibrium_halfspaces(phase_of(ctx, new.contacts)),
+            c_prev,
+            kin_prev=kinematics_of(ctx, state.contacts),
+            kin_next=kinematics_of(ctx, new.contacts),
+        )
+        report = check_state(ctx, new)
+        if not tp.feasible or not report.valid:
+            worst = max(worst, FailureReason.NOT_BALANCED, key=_STAGE.__getitem__)
+            continue
+        return ContactAttempt(True, new, None, tried, "", limb, cand.surface)
+    return _fail(state, worst, limb, f"no candidate of {len(cands)} passed", len(cands))
+
+
+def break_contact(ctx: ContactContext, state: ContactState, limb: str) -> ContactAttempt:
+    """Release ``limb``: shift the COM over the remaining contacts (2PAC: a point of
+    equilibrium(after) inside kinematics(before)), then lift the effector by ``params.lift``."""
+    if not ctx.has_limb(limb):
+        return _fail(state, FailureReason.UNKNOWN_LIMB, limb, f"unknown limb {limb!r}")
+    old = state.contact(limb)
+    if old is None:
+        return _fail(state, FailureReason.NOT_IN_CONTACT, limb, f"{limb} is not in contact")
+    after = tuple(c for c in state.contacts if c.limb != limb)
+    if not after:
+        return _fail(state, FailureReason.NOT_BALANCED, limb, "no contact would remain")
+    com = com_of(ctx, state.q)
+    kin_before = kinematics_of(ctx, state.contacts)
+    kin_after = kinematics_of(ctx, after)
+    tp = transition_point(
+        shrunk_equilibrium(ctx, after),
+        equilibrium_halfspaces(phase_of(ctx, state.contacts)),
+        com,
+        kin_prev=kin_before,
+        kin_next=kin_after,
+    )
+    if not tp.feasible:
+        return _fail(state, FailureReason.NOT_BALANCED, limb, "no balanced COM reachable")
+    res = balance_ik(ctx, np.array(state.q), state.contacts, tp.point)
+    q1 = np.array(res.q)
+    if not _holds(ctx, q1, state.contacts):
+        return _fail(state, FailureReason.NOT_BALANCED, limb, "COM shift not reachable", 1)
+    com1 = com_of(ctx, q1)
+    if balance_margin(ctx, after, com1) < ctx.params.margin:
+        msg = f"COM shift not balanced: {balance_margin(ctx, after, com1):.3g} N, {com1}, {tp.point}"
+        return _fail(state, FailureReason.NOT_BALANCED, limb, msg, 1)
+    spec = ctx.character.limb(limb)
+    lifted = old.placement[:3, 3] + ctx.params.lift * old.normal
+    res2 = balance_ik(
+        ctx,
+        q1,
+        after,
+        com1,
+        extra=[FramePositionTask(spec.frame_id, lifted, np.zeros(3), Priority.EFFECTOR)],
+        moving=(limb,),
+    )
+    q2 = np.array(res2.q)
+    new = ContactState(q2, after)
+    report = check_state(ctx, new)
+    if not report.valid:
+        new = ContactState(q1, after)
+        report = check_state(ctx, new)
+    if not report.valid:
+        reason = FailureReason.COLLISION if not report.collision_free else FailureReason.NOT_BALANCED
+        return _fail(state, reason, limb, f"released state invalid: {report}", 1)
+    return ContactAttempt(True, new, None, 1, "", limb)
+
+
+def stand_state(
+    ctx: ContactContext,
+    q0: FloatArray,
+    surfaces: Mapping[str, int],
+    points: Mapping[str, FloatArray] | None = None,
+) -> ContactAttempt:
+    """A balanced state with each limb of ``surfaces`` on its surface id (at ``points[limb]``
+    (3,) when given, else the surface centroid), by whole-body IK from ``q0`` (nq,)."""
+    placed: dict[str, FloatArray] = {}
+    tasks: list[Task] = []
+    for limb, sid in surfaces.items():
+        if not ctx.has_limb(limb):
+            state = ContactState(q0, ())
+            return _fail(state, FailureReason.UNKNOWN_LIMB, limb, f"unknown limb {limb!r}")
+        surface = ctx.scene.surfaces[sid]
+        p = surface.centroid if points is None or limb not in points else points[limb]
+        placed[limb] = np.asarray(surface.closest_point(np.asarray(p)[None])[0])
+        tasks.append(_contact_task(ctx, limb, placed[limb], surface.normal))
+    centre = np.mean(list(placed.values()), axis=0)
+    q = np.array(q0)
+    for _ in range(2):
+        result = solve_ik(
+            ctx.model,
+            q,
+            [*tasks, ComTask(centre, (True, True, False)), posture_task(ctx)],
+            data=ctx.pin_data,
+            max_iterations=300,
+        )
+        q = np.array(result.q)
+    contacts = tuple(
+        make_contact(ctx, limb, effector_pose(ctx, limb, q), sid) for limb, sid in surfaces.items()
+    )
+    state = ContactState(q, contacts)
+    report = check_state(ctx, state)
+    if not report.valid:
+        return _fail(state, FailureReason.INVALID_STATE, "", f"standing state invalid: {report}")
+    return ContactAttempt(True, state, None, 1, "", "")

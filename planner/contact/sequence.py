@@ -1,0 +1,208 @@
+"""Contact sequence along a root path (anchor section 5), one contact change per state.
+
+Walking the path in steps of ``spacing``: contacts are kept while inverse kinematics can hold
+them at the next root pose; a contact that cannot be held is broken (oldest first) before
+the root moves on; a free limb gets a new contact, scored by a look-ahead target (its
+reference effector position at the root pose ``lookahead`` metres further along the path).
+At the end, the goal contacts are made one at a time. Every emitted state differs from the
+previous one by exactly one contact added or removed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.contact.context import ContactContext
+from planner.contact.generation import break_contact, create_contact, maintain
+from planner.contact.state import ContactState
+from planner.kinematics import frame_placement
+from planner.result import PlanResult, PlanStatus
+from planner.termination import Termination
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class SequenceParams:
+    """spacing : m between root samples along the path (the anchor uses 0.01 s of guide time).
+    lookahead : m ahead along the path that scores new contacts. goal_tolerance : m, a
+    contact this close to the goal's counts as reached. max_states : cap on emitted states.
+    max_stuck : consecutive root samples where nothing helps before giving up.
+    """
+
+    spacing: float = 0.05
+    lookahead: float = 0.3
+    goal_tolerance: float = 0.03
+    max_states: int = 200
+    max_stuck: int = 3
+
+    def __post_init__(self) -> None:
+        if not 0 < self.spacing <= 0.5:
+            raise ValueError("spacing must be in (0, 0.5] m")
+        if not 0 < self.max_states <= 10_000:
+            raise ValueError("max_states must be in [1, 10000]")
+
+
+def _reference_offsets(ctx: ContactContext) -> dict[str, FloatArray]:
+    """Each limb's effector position in the root frame at the reference posture."""
+    q_ref = np.asarray(ctx.character.q_ref)
+    root_inv = np.linalg.inv(frame_placement(ctx.model, q_ref, 1))
+    out = {}
+    for limb in ctx.character.limbs:
+        placement = frame_placement(ctx.model, q_ref, limb.effector_frame)
+        out[limb.name] = (root_inv @ placement)[:3, 3]
+    return out
+
+
+def _along(poses: FloatArray, lengths: FloatArray, s: float) -> FloatArray:
+    """The root pose (4, 4) nearest to arc length ``s`` along the sampled path."""
+    index = int(np.clip(np.searchsorted(lengths, s), 0, len(poses) - 1))
+    return np.asarray(poses[index])
+
+
+def contact_sequence(
+    ctx: ContactContext,
+    start: ContactState,
+    poses: FloatArray,
+    goal: ContactState | None,
+    *,
+    rng: np.random.Generator,
+    until: Termination,
+    params: SequenceParams | None = None,
+) -> PlanResult[tuple[ContactState, ...]]:
+    """States from ``start`` along root ``poses`` (n, 4, 4) (dense, <= spacing apart) to ``goal``.
+
+    SOLVED when the goal contacts are all made; APPROXIMATE with the states found so far when
+    stuck; TIMEOUT (with the partial states) when ``until`` fires.
+    """
+    p = params or SequenceParams()
+    offsets = _reference_offsets(ctx)
+    steps = np.linalg.norm(np.diff(poses[:, :3, 3], axis=0), axis=1)
+    lengths = np.concatenate([[0.0], np.cumsum(steps)])
+    states: list[ContactState] = [start]
+    current = start
+    free_since = {limb: -1 for limb in ctx.limb_names() if start.contact(limb) is None}
+    stats: dict[str, float | int | str] = {"breaks": 0, "creations": 0, "root_samples": 0}
+
+    def emit(state: ContactState, kind: str) -> None:
+        nonlocal current
+        current = state
+        states.append(state)
+        stats[kind] = int(stats[kind]) + 1
+
+    def try_create(index: int) -> bool:
+        target_pose = _along(poses, lengths, float(lengths[index]) + p.lookahead)
+        for limb in sorted(free_since, key=free_since.__getitem__):
+            look = target_pose[:3, :3] @ offsets[limb] + target_pose[:3, 3]
+            attempt = create_contact(ctx, current, limb, rng=rng, lookahead=look)
+            if attempt.ok:
+                free_since.pop(limb)
+                emit(attempt.state, "creations")
+                return True
+        return False
+
+    def result(status: PlanStatus, message: str = "") -> PlanResult[tuple[ContactState, ...]]:
+        stats["states"] = len(states)
+        return PlanResult(status, tuple(states), dict(stats), message)
+
+    index = 0
+    stuck = 0
+    while index < len(poses) - 1:
+        if until():
+            return result(PlanStatus.TIMEOUT, "time budget spent while walking the path")
+        if len(states) >= p.max_states:
+            return result(PlanStatus.APPROXIMATE, f"stopped at {p.max_states} states")
+        moved, lost = maintain(ctx, current, poses[index + 1])
+        stats["root_samples"] = int(stats["root_samples"]) + 1
+        if not lost:
+            current = moved
+            index += 1
+            stuck = 0
+            try_create(index)
+            continue
+        victim = next(limb for limb in current.limbs if limb in lost)
+        attempt = break_contact(ctx, current, victim)
+        if attempt.ok:
+            free_since[victim] = index
+            emit(attempt.state, "breaks")
+            continue
+        if try_create(index):
+            continue
+        stuck += 1
+        if stuck > p.max_stuck:
+            return result(
+                PlanStatus.APPROXIMATE,
+                f"stuck at {lengths[index]:.2f} m of {lengths[-1]:.2f} m: cannot release "
+                f"{victim} ({attempt.reason.value if attempt.reason else 'unknown'})",
+            )
+        index += 1  # the anchor skips a sample once; the next pose may be easier
+
+    return _reach_goal(ctx, current, goal, states, free_since, stats, rng, until, p)
+
+
+def _reach_goal(
+    ctx: ContactContext,
+    current: ContactState,
+    goal: ContactState | None,
+    states: list[ContactState],
+    free_since: dict[str, int],
+    stats: dict[str, float | int | str],
+    rng: np.random.Generator,
+    until: Termination,
+    p: SequenceParams,
+) -> PlanResult[tuple[ContactState, ...]]:
+    """Make the goal's contacts one change at a time (break misplaced ones, then create)."""
+    if goal is None:
+        wanted: Sequence[str] = [limb for limb in ctx.limb_names() if limb in free_since]
+        targets: dict[str, FloatArray | None] = dict.fromkeys(wanted)
+        surfaces: dict[str, int | None] = dict.fromkeys(wanted)
+    else:
+        targets = {c.limb: c.position for c in goal.contacts}
+        surfaces = {c.limb: (c.surface if c.surface >= 0 else None) for c in goal.contacts}
+    failures: list[str] = []
+    for limb, target in targets.items():
+        if until():
+            break
+        existing = current.contact(limb)
+        if existing is not None and (
+            target is None or np.linalg.norm(existing.position - target) <= p.goal_tolerance
+        ):
+            continue
+        if existing is not None:
+            released = break_contact(ctx, current, limb)
+            if not released.ok:
+                failures.append(f"{limb}: cannot release ({released.message})")
+                continue
+            current = released.state
+            states.append(current)
+            stats["breaks"] = int(stats["breaks"]) + 1
+        made = create_contact(ctx, current, limb, rng=rng, target=target, surface=surfaces[limb])
+        if made.ok and (
+            target is None
+            or np.linalg.norm(made.state.contact(limb).position - target)  # type: ignore[union-attr]
+            <= p.goal_tolerance
+        ):
+            current = made.state
+            states.append(current)
+            stats["creations"] = int(stats["creations"]) + 1
+        else:
+            failures.append(f"{limb}: goal contact not made ({made.message or 'too far'})")
+    if goal is not None:
+        for limb in [c for c in current.limbs if goal.contact(c) is None]:
+            released = break_contact(ctx, current, limb)
+            if released.ok:
+                current = released.state
+                states.append(current)
+                stats["breaks"] = int(stats["breaks"]) + 1
+            else:
+                failures.append(f"{limb}: cannot release for the goal")
+    stats["states"] = len(states)
+    if until() and failures:
+        return PlanResult(PlanStatus.TIMEOUT, tuple(states), dict(stats), "; ".join(failures))
+    if failures:
+        return PlanResult(PlanStatus.APPROXIMATE, tuple(states), dict(stats), "; ".join(failures))
+    return PlanResult(PlanStatus.SOLVED, tuple(states), dict(stats))

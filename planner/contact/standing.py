@@ -1,0 +1,346 @@
+"""Balanced standing states: the ground limbs of ``q_ref`` put by IK on the Support surfaces.
+
+``state_from_root_pose`` keeps a given root pose and projects each ground limb (the limbs
+touching the ground in ``q_ref``) onto the Support surface below its reference contact;
+``standing_state`` searches root poses above a point of the scene (as a game engine with a
+navigation mesh asks). A state is accepted when every IK converged, the contact points lie on
+their surfaces (within ``CONTACT_TOLERANCE`` of the plane, inside the polygons) with aligned
+normals, the joints are within limits, the trunk W0 and the body are collision-free (the
+contacting foot geometry excepted), the body is free of self-collision, the root pose meets
+the reachability condition and the COM is in static equilibrium with a robustness margin.
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import coal
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from planner.character import Character, Limb
+from planner.contact.reachability import ReachabilityChecker, ground_limbs
+from planner.contact.state import ContactState, LimbContact
+from planner.kinematics import project_contact, within_limits
+from planner.offline import OfflineData
+from planner.poses import matrix_to_quaternion, pose_matrix, yaw_matrix
+from planner.result import PlanResult, PlanStatus
+from planner.scene import Scene, Surface, SurfaceKind
+from planner.termination import Termination, never
+from trajectory import Contact, ContactPhase, equilibrium_margin
+
+FloatArray = NDArray[np.float64]
+
+CONTACT_TOLERANCE = 0.005
+"""Largest distance (m) of a contact point from its surface plane."""
+NORMAL_TOLERANCE = 0.02
+"""Largest angle (rad) between the effector contact normal and the surface normal."""
+EXEMPT_DISTANCE = 0.01
+"""Geometries of a contacting effector's link closer than this (m) to its contact points are
+allowed to touch the scene (they carry the contact)."""
+GRAVITY = 9.81
+
+
+@dataclass(frozen=True, slots=True)
+class StandingParams:
+    """Tunables of the standing search.
+
+    margin : required equilibrium robustness as a fraction of the mean generator weight
+        (m g / number of friction-cone generators); 0 only asks for static equilibrium.
+    attempts : root poses tried by ``standing_state``. jitter : m, standard deviation of the
+        sideways root offset after the first attempt. search_height : m, how far above or
+        below a reference contact a Support surface is looked for.
+    posture_weight : pull of the IK toward ``q_ref`` in [0, 1].
+    """
+
+    margin: float = 0.05
+    attempts: int = 24
+    jitter: float = 0.04
+    search_height: float = 0.35
+    posture_weight: float = 0.5
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class _BodyGeometry:
+    """Per character: the collision objects and the ones exempt per contacting limb."""
+
+    objects: tuple[tuple[int, object, pin.SE3], ...]  # (parent joint, coal geometry, placement)
+    exempt: dict[str, frozenset[int]]
+
+
+_GEOMETRY: weakref.WeakValueDictionary[int, Character] = weakref.WeakValueDictionary()
+_GEOMETRY_DATA: dict[int, _BodyGeometry] = {}
+
+
+def _body_geometry(character: Character) -> _BodyGeometry:
+    key = id(character)
+    if _GEOMETRY.get(key) is character and key in _GEOMETRY_DATA:
+        return _GEOMETRY_DATA[key]
+    model, gmodel = character.model, character.geometry
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, character.q_ref)
+    objects = tuple(
+        (int(o.parentJoint), o.geometry, o.placement) for o in gmodel.geometryObjects
+    )
+    request, result = coal.DistanceRequest(), coal.DistanceResult()
+    exempt: dict[str, frozenset[int]] = {}
+    for limb in character.limbs:
+        placement = data.oMf[limb.frame_id]
+        points = limb.contact_points() @ np.array(placement.rotation).T + placement.translation
+        joint = int(model.frames[limb.frame_id].parentJoint)
+        near = set()
+        for g, (parent, geometry, offset) in enumerate(objects):
+            if parent != joint:
+                continue
+            world = data.oMi[parent] * offset
+            tf = coal.Transform3s(np.array(world.rotation), np.array(world.translation))
+            for point in points:
+                result.clear()
+                probe = coal.Transform3s(np.eye(3), np.asarray(point, dtype=np.float64))
+                d = coal.distance(geometry, tf, coal.Sphere(1e-4), probe, request, result)
+                if d < EXEMPT_DISTANCE:
+                    near.add(g)
+        exempt[limb.name] = frozenset(near)
+    out = _BodyGeometry(objects, exempt)
+    _GEOMETRY[key] = character
+    _GEOMETRY_DATA[key] = out
+    return out
+
+
+def body_collides_scene(
+    scene: Scene, character: Character, q: FloatArray, contact_limbs: Sequence[str] = ()
+) -> bool:
+    """Whether the character's collision geometry at ``q`` (nq,) touches the scene mesh, the
+    geometry carrying the contacts of ``contact_limbs`` excepted."""
+    body = _body_geometry(character)
+    model = character.model
+    data = model.createData()
+    pin.forwardKinematics(model, data, np.asarray(q, dtype=np.float64))
+    skip: set[int] = set()
+    for name in contact_limbs:
+        skip |= body.exempt[name]
+    bvh = scene.collision.bvh
+    identity = coal.Transform3s()
+    request, result = coal.CollisionRequest(), coal.CollisionResult()
+    for g, (parent, geometry, offset) in enumerate(body.objects):
+        if g in skip:
+            continue
+        world = data.oMi[parent] * offset
+        tf = coal.Transform3s(np.array(world.rotation), np.array(world.translation))
+        result.clear()
+        if coal.collide(bvh, identity, geometry, tf, request, result):
+            return True
+    return False
+
+
+def self_collides(character: Character, q: FloatArray) -> bool:
+    """Whether the character at ``q`` (nq,) collides with itself (declared pairs only)."""
+    model, gmodel = character.model, character.geometry
+    data, gdata = model.createData(), pin.GeometryData(gmodel)
+    return bool(pin.computeCollisions(model, data, gmodel, gdata,
+                                      np.asarray(q, dtype=np.float64), True))
+
+
+def _support_below(
+    scene: Scene, point: FloatArray, search_height: float
+) -> tuple[Surface, FloatArray] | None:
+    """The Support surface whose closest point to ``point`` (3,) is nearest in height (within
+    ``search_height``), and that closest point (3,); None when there is none."""
+    best: tuple[float, Surface, FloatArray] | None = None
+    for surface in scene.surfaces_of(SurfaceKind.SUPPORT):
+        corners = surface.triangle_vertices.reshape(-1, 3)
+        lo, hi = corners.min(axis=0), corners.max(axis=0)
+        if np.any(point[:2] < lo[:2] - 1e-6) or np.any(point[:2] > hi[:2] + 1e-6):
+            continue
+        if not surface.contains_projection(point[None])[0]:
+            continue
+        target = surface.closest_point(point[None])[0]
+        gap = abs(float(target[2] - point[2]))
+        if gap <= search_height and (best is None or gap < best[0]):
+            best = (gap, surface, target)
+    return None if best is None else (best[1], best[2])
+
+
+def _contact_points(limb: Limb, placement: FloatArray) -> FloatArray:
+    return np.asarray(limb.contact_points() @ placement[:3, :3].T + placement[:3, 3])
+
+
+def contact_on_surface(contact: LimbContact, surface: Surface, limb: Limb) -> bool:
+    """Contact points within ``CONTACT_TOLERANCE`` of the surface plane and inside it, and the
+    effector contact normal within ``NORMAL_TOLERANCE`` of the surface normal."""
+    heights = np.abs(surface.height(contact.points))
+    if float(heights.max()) > CONTACT_TOLERANCE:
+        return False
+    if not bool(np.all(surface.contains_projection(contact.points))):
+        return False
+    axis = contact.placement[:3, :3] @ limb.normal
+    cos = float(np.clip(axis @ surface.normal / np.linalg.norm(axis), -1.0, 1.0))
+    return math.acos(cos) <= NORMAL_TOLERANCE
+
+
+def _equilibrium(character: Character, q: FloatArray, contacts: Sequence[LimbContact],
+                 params: StandingParams) -> tuple[bool, float, FloatArray]:
+    """(balanced with the margin, margin in N, COM (3,))."""
+    model = character.model
+    com = np.array(pin.centerOfMass(model, model.createData(), q), dtype=np.float64)
+    phase = ContactPhase([Contact(c.points, c.normal, c.mu) for c in contacts],
+                         mass=character.mass)
+    result = equilibrium_margin(phase, com)
+    generators = phase.wrench_generators.shape[0]
+    needed = params.margin * character.mass * GRAVITY / max(generators, 1)
+    return bool(result.feasible and result.margin >= needed), float(result.margin), com
+
+
+def state_from_root_pose(
+    scene: Scene,
+    character: Character,
+    data: OfflineData,
+    root_pose: FloatArray,
+    *,
+    limbs: Sequence[str] | None = None,
+    checker: ReachabilityChecker | None = None,
+    params: StandingParams | None = None,
+) -> PlanResult[ContactState]:
+    """A balanced standing state keeping the root at ``root_pose`` (4, 4, world frame).
+
+    limbs : the limbs to put in contact (default: the ground limbs of ``q_ref``), each on the
+    Support surface below its reference contact. checker : the reachability condition the root
+    pose must meet (default: built from ``data`` with default settings). SOLVED with the state
+    (contacts in ``limbs`` order), else INFEASIBLE with a message saying what failed.
+    """
+    params = StandingParams() if params is None else params
+    pose = np.asarray(root_pose, dtype=np.float64).reshape(4, 4)
+    names = ground_limbs(character) if limbs is None else tuple(limbs)
+    if checker is None:
+        checker = ReachabilityChecker(scene, character, data)
+    if not checker.is_valid(pose):
+        return _fail("the root pose fails the reachability condition")
+    model = character.model
+    q = np.array(character.q_ref, dtype=np.float64)
+    q[0:3] = pose[:3, 3]
+    q[3:7] = matrix_to_quaternion(pose[:3, :3])
+    reference = q.copy()
+    offsets = checker.offsets
+    chosen: list[tuple[Limb, Surface]] = []
+    pin_data = model.createData()
+    for name in names:
+        limb = character.limb(name)
+        ref_point = pose[:3, :3] @ offsets[name] + pose[:3, 3]
+        below = _support_below(scene, ref_point, params.search_height)
+        if below is None:
+            return _fail(f"no Support surface under {name}")
+        surface, target = below
+        ik = project_contact(
+            model, q, limb.root_joint, limb.effector_frame, target, surface.normal,
+            contact_normal=limb.normal, contact_offset=limb.offset, reference=reference,
+            posture_weight=params.posture_weight, data=pin_data,
+        )
+        if not ik.success:
+            return _fail(f"IK cannot put {name} on surface {surface.id}")
+        q = np.array(ik.q, dtype=np.float64)
+        chosen.append((limb, surface))
+    if not within_limits(model, q):
+        return _fail("joint limits violated")
+    pin.framesForwardKinematics(model, pin_data, q)
+    contacts = []
+    for limb, surface in chosen:
+        placement = np.array(pin_data.oMf[limb.frame_id].homogeneous, dtype=np.float64)
+        contact = LimbContact(limb.name, placement, _contact_points(limb, placement),
+                              surface.normal, limb.mu, surface.id)
+        if not contact_on_surface(contact, surface, limb):
+            return _fail(f"{limb.name} is not fully on surface {surface.id}")
+        contacts.append(contact)
+    if body_collides_scene(scene, character, q, names):
+        return _fail("the body collides with the scene")
+    if self_collides(character, q):
+        return _fail("the body collides with itself")
+    balanced, margin, com = _equilibrium(character, q, contacts, params)
+    stats: dict[str, float | int | str] = {"margin": margin, "com_x": float(com[0]),
+                                           "com_y": float(com[1]), "com_z": float(com[2])}
+    if not balanced:
+        return PlanResult(PlanStatus.INFEASIBLE, None, stats, "not balanced with the margin")
+    return PlanResult(PlanStatus.SOLVED, ContactState(q, tuple(contacts)), stats)
+
+
+def _fail(message: str) -> PlanResult[ContactState]:
+    return PlanResult(PlanStatus.INFEASIBLE, None, {}, message)
+
+
+def standing_state(
+    scene: Scene,
+    character: Character,
+    data: OfflineData,
+    point: FloatArray,
+    *,
+    rng: np.random.Generator,
+    yaw: float | None = None,
+    until: Termination = never,
+    checker: ReachabilityChecker | None = None,
+    params: StandingParams | None = None,
+) -> PlanResult[ContactState]:
+    """A balanced standing state at ``point`` (3,), a point of a Support surface (world, m).
+
+    The root is placed so the ground limbs' reference contacts are centred on the point (root
+    yaw ``yaw`` rad, or drawn from ``rng``; after the first attempt the root is also shifted
+    sideways at random), at the reference height above the lowest Support surface found below
+    them; a first result that is not balanced is retried with the root moved by the COM's
+    offset from the support centre. SOLVED with the state; INFEASIBLE when no Support surface
+    is at the point or ``params.attempts`` root poses all fail (message: the last reason);
+    TIMEOUT when ``until`` fires first.
+    """
+    params = StandingParams() if params is None else params
+    p = np.asarray(point, dtype=np.float64).reshape(3)
+    if _support_below(scene, p, 0.1) is None:
+        return _fail("no Support surface at the point")
+    if checker is None:
+        checker = ReachabilityChecker(scene, character, data)
+    names = ground_limbs(character)
+    local = np.stack([checker.offsets[name] for name in names])
+    centre = local.mean(axis=0)
+    message = "no attempt made"
+    for attempt in range(params.attempts):
+        if until():
+            return PlanResult(PlanStatus.TIMEOUT, None, {"attempts": attempt}, "deadline")
+        heading = float(rng.uniform(-np.pi, np.pi)) if yaw is None else float(yaw)
+        rotation = yaw_matrix(np.array(heading))
+        shift = np.zeros(3)
+        if attempt > 0:
+            shift[:2] = rng.normal(0.0, params.jitter, size=2)
+        root = p + shift - rotation @ centre
+        heights = []
+        for k in range(len(names)):
+            foot = rotation @ local[k] + root
+            foot[2] = p[2]
+            below = _support_below(scene, foot, params.search_height)
+            if below is not None:
+                heights.append(float(below[1][2]))
+        if len(heights) < len(names):
+            message = "a foot has no Support surface below it"
+            continue
+        root[2] = min(heights) - centre[2]
+        result = state_from_root_pose(scene, character, data, pose_matrix(root, rotation),
+                                      limbs=names, checker=checker, params=params)
+        if result.status is PlanStatus.INFEASIBLE and "com_x" in result.stats:
+            support = np.mean([c.points.mean(axis=0) for c in _last_contacts(result)], axis=0) \
+                if False else None
+            del support
+            offset = np.array([float(result.stats["com_x"]), float(result.stats["com_y"])])
+            foot_centre = (rotation @ centre + root)[:2]
+            root[:2] -= offset - foot_centre
+            result = state_from_root_pose(scene, character, data, pose_matrix(root, rotation),
+                                          limbs=names, checker=checker, params=params)
+        if result.status is PlanStatus.SOLVED:
+            stats = dict(result.stats)
+            stats["attempts"] = attempt + 1
+            stats["yaw"] = heading
+            return PlanResult(PlanStatus.SOLVED, result.value, stats)
+        message = result.message
+    return PlanResult(PlanStatus.INFEASIBLE, None, {"attempts": params.attempts}, message)
+
+
+def _last_contacts(result: PlanResult[ContactState]) -> tuple[LimbContact, ...]:
+    return () if result.value is None else result.value.contacts
