@@ -4,11 +4,13 @@ Run: .venv/bin/python bench/jumps.py [--quick]
 
 - steering throughput (pairs per second, batched) and the range pre-filter;
 - roadmap build time, node and edge counts on a synthetic platforms scene;
-- query time (median over random start/goal pairs), save/load time.
+- query time (median over random start/goal pairs), save/load time;
+- per scenario of ``tests/scenarios/jumps`` (real scenes and characters): roadmap build time
+  and node count (eager and lazy edges), query time, time per jump including keyframes
+  (stance contact generation, contact phases, flight), contact generation per stance.
 
 Jump paper Table 1 for comparison: roadmap build 0.51 to 107 s; one jump 0.12 to 1.39 s on
 average; contact generation 25 to 77 ms (one core of a Xeon E5-1630 v3 at 3.7 GHz).
-Real scenes, characters and keyframes come in later rounds.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -166,12 +169,109 @@ def bench_roadmap(quick: bool) -> None:
     )
 
 
+TABLE1 = (
+    "jump paper Table 1 (one core, Xeon E5-1630 v3): roadmap 0.51-107 s (22-1256 nodes); "
+    "one jump 0.12-1.39 s average; contact generation 25-77 ms"
+)
+
+
+def bench_scenarios(quick: bool) -> None:
+    from planner.ballistic.keyframes import JumpAnimator
+    from planner.ballistic.nodes import ReducedModel, SceneSampler
+    from planner.ballistic.planner import plan_jumps
+    from planner.ballistic.roadmap import build_roadmap as build
+    from tests.scenarios.jumps.scenario import scenarios
+
+    print("\n== scenarios (real scenes and characters; tests/scenarios/jumps) ==")
+    print(TABLE1)
+    print(
+        f"{'scenario':<30} {'nodes':>6} {'eager s':>8} {'lazy s':>7} {'edges':>6} "
+        f"{'query ms':>9} {'jumps':>6} {'ms/jump':>8} {'kf ms/jump':>10} {'contact ms':>10}"
+    )
+    for scenario in scenarios():
+        loaded = scenario.load()
+        if loaded is None:
+            print(f"{scenario.name:<30} skipped (scene not installed)")
+            continue
+        scene, character, data = loaded
+        params = scenario.params()
+        rparams = params.roadmap_params(scene, character, data)
+        model = ReducedModel.build(scene, character, data, margin=rparams.max_gap / 2)
+        sampler = SceneSampler(model, params.limbs_needed(character))
+        eager_s = float("nan")
+        if not quick:
+            start = time.perf_counter()
+            build(
+                sampler,
+                params.n_nodes,
+                replace(rparams, lazy=False),
+                rng=np.random.default_rng(scenario.seed),
+                collides_many=model.collider,
+            )
+            eager_s = time.perf_counter() - start
+        start = time.perf_counter()
+        built = build(
+            sampler,
+            params.n_nodes,
+            rparams,
+            rng=np.random.default_rng(scenario.seed),
+            collides_many=model.collider,
+        )
+        lazy_s = time.perf_counter() - start
+        roadmap = built.value
+        assert roadmap is not None
+
+        results = [
+            plan_jumps(
+                scene,
+                character,
+                data,
+                scenario.end("start"),
+                scenario.end("goal"),
+                rng=np.random.default_rng(scenario.seed),
+                roadmap=roadmap,
+                params=params,
+            )
+            for _ in range(3)
+        ]
+        plans = [r.value for r in results]
+        if any(p is None for p in plans):
+            print(f"{scenario.name:<30} not solved: {results[0].status}")
+            continue
+        plans_ok = [p for p in plans if p is not None]
+        n_jumps = len(plans_ok[0].jumps)
+        query_ms = 1e3 * statistics.median(p.timings["query"] for p in plans_ok)
+        kf_ms = 1e3 * statistics.median(p.timings["keyframes"] for p in plans_ok) / n_jumps
+        per_jump = 1e3 * statistics.median(p.timings["total"] for p in plans_ok) / n_jumps
+        # Contact generation: one stance (all contacts of a node) from scratch.
+        animator = JumpAnimator(character, data)
+        nodes = roadmap.nodes
+        k = min(len(nodes), 20)
+        t0 = time.perf_counter()
+        for i in range(k):
+            animator.stance(
+                nodes.positions[i],
+                nodes.orientations[i],
+                nodes.contacts["active"][i],
+                nodes.contacts["points"][i],
+                nodes.contacts["normals"][i],
+            )
+        contact_ms = 1e3 * (time.perf_counter() - t0) / k
+        print(
+            f"{scenario.name:<30} {len(roadmap.nodes):>6} {eager_s:>8.2f} {lazy_s:>7.2f} "
+            f"{len(roadmap.edges):>6} {query_ms:>9.2f} {n_jumps:>6} {per_jump:>8.1f} "
+            f"{kf_ms:>10.1f} {contact_ms:>10.1f}"
+        )
+    print("ms/jump: plan_jumps on the prebuilt roadmap (end points, query, keyframes) / jumps")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller sizes")
     args = parser.parse_args()
     bench_steering(args.quick)
     bench_roadmap(args.quick)
+    bench_scenarios(args.quick)
 
 
 if __name__ == "__main__":

@@ -20,6 +20,10 @@ class ApiError(Exception):
         self.message = message
         self.field = field
 
+    def __reduce__(self) -> tuple[type[ApiError], tuple[int, str, str, str | None]]:
+        # Raised in worker processes and re-raised in the server: keep it picklable.
+        return (ApiError, (self.status, self.code, self.message, self.field))
+
 
 def not_found(kind: str, identifier: str, field: str) -> ApiError:
     """404 for an unknown id."""

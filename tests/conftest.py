@@ -11,3 +11,20 @@ settings.register_profile(
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
 )
 settings.load_profile("gecko")
+
+
+def _preload_reference_oracle() -> None:
+    """Import hpp-centroidal-dynamics (a test oracle) before anything imports Pinocchio.
+
+    Both register boost.python converters for Eigen types; the oracle's module fails to
+    initialise when Pinocchio's are already registered, while the other order works.
+    """
+    try:
+        from bench._oracles import load_centroidal_dynamics
+
+        load_centroidal_dynamics()
+    except Exception:
+        pass
+
+
+_preload_reference_oracle()

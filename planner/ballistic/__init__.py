@@ -4,10 +4,22 @@ Modules: ``steering`` (batched closed-form steering in t = tan(alpha)), ``arc`` 
 bounded-gap sampling, trunk collision and the collision-free search over t), ``cones``
 (centroidal cone from contacts), ``roadmap`` (directed jump roadmap: build, persist, query),
 ``synthetic`` (horizontal-platform sampler and sphere-trunk/box collision, for tests and
-benchmarks until real scenes exist).
+benchmarks), ``nodes`` (reduced model on a real scene: trunk collision, contact estimate, node
+sampling), ``keyframes`` (whole-body jump keyframes) and ``planner`` (``plan_jumps`` and the
+``RoadmapStore``: the domain API of the jump endpoints).
 """
 
 from planner.ballistic.cones import CentroidalCone, centroidal_cone, centroidal_cones
+from planner.ballistic.planner import (
+    JumpContact,
+    JumpEnd,
+    JumpInfo,
+    JumpParams,
+    JumpPlan,
+    RoadmapStore,
+    plan_jumps,
+)
+from planner.ballistic.roadmap import Roadmap, RoadmapParams
 from planner.ballistic.steering import (
     GRAVITY,
     Choice,
@@ -28,6 +40,14 @@ __all__ = [
     "CentroidalCone",
     "Choice",
     "Jump",
+    "JumpContact",
+    "JumpEnd",
+    "JumpInfo",
+    "JumpParams",
+    "JumpPlan",
+    "Roadmap",
+    "RoadmapParams",
+    "RoadmapStore",
     "SteerFailure",
     "SteerResult",
     "SteerTolerances",
@@ -36,6 +56,7 @@ __all__ = [
     "jump_at",
     "jumps_at",
     "min_launch_speed_sq",
+    "plan_jumps",
     "range_prefilter",
     "steer",
     "verify_jumps",

@@ -6,7 +6,7 @@ pose is a valid roadmap node when W0 is collision-free and at least ``min_limbs`
 meet a contact surface (Support, optionally Lean).
 
 Contact estimate (no whole-body search): for each limb whose Wk meets surfaces, the contact is
-the area centroid of Wk ∩ S for the surface S with the largest intersection area, with the
+the area centroid of Wk ∩ S for the largest surface S (by area) that Wk meets, with the
 normal of S and the limb's (or the configured) mu. Wk is replaced by an inner approximation
 (the hull of its support points in ``_DIRECTIONS`` directions, ~50 vertices): the exact hulls
 have thousands of faces and the estimate only needs the centre of the section. The centroidal
@@ -100,15 +100,38 @@ class TrunkCollider:
                 grown.append(Capsule(shape.radius + margin, shape.half_length, shape.offset))
         return TrunkCollider(scene, tuple(grown), float(margin))
 
-    def __call__(self, poses: FloatArray) -> BoolArray:
-        p = np.asarray(poses, dtype=np.float64).reshape(-1, 4, 4)
-        hit = np.zeros(len(p), dtype=bool)
+    @property
+    def reach(self) -> float:
+        """Largest distance (m) of a point of the (inflated) trunk from the root."""
+        out = 0.0
+        for shape in self.shapes:
+            centre = float(np.linalg.norm(shape.offset[:3, 3]))
+            if isinstance(shape, Box):
+                out = max(out, centre + float(np.linalg.norm(shape.half_extents)))
+            else:
+                out = max(out, centre + shape.radius + shape.half_length)
+        return out
+
+    def _hits(self, poses: FloatArray) -> BoolArray:
+        hit = np.zeros(len(poses), dtype=bool)
         for shape in self.shapes:
             todo = np.flatnonzero(~hit)
             if len(todo) == 0:
                 break
-            hit[todo] = self.scene.collision.collides_many(shape, p[todo])
+            hit[todo] = self.scene.collision.collides_many(shape, poses[todo])
         return hit
+
+    def clearance(self, poses: FloatArray) -> FloatArray:
+        """(n,) distance (m) from the inflated trunk to the scene (<= 0: touching)."""
+        p = np.asarray(poses, dtype=np.float64).reshape(-1, 4, 4)
+        out = np.full(len(p), np.inf)
+        for shape in self.shapes:
+            out = np.minimum(out, self.scene.collision.distance_many(shape, p))
+        return out
+
+    def __call__(self, poses: FloatArray) -> BoolArray:
+        """(n,) True where the inflated trunk at the root pose (n, 4, 4) touches the scene."""
+        return self._hits(np.asarray(poses, dtype=np.float64).reshape(-1, 4, 4))
 
 
 # --------------------------------------------------------------------------------------------
@@ -151,9 +174,27 @@ def hull_edges(polytope: ConvexPolytope) -> IntArray:
     return np.asarray(np.unique(pairs, axis=0), dtype=np.int64)
 
 
+_HULLS: dict[tuple[str, str], tuple[ConvexPolytope, IntArray]] = {}
+
+
+def _reduced(data: OfflineData, limb: str) -> tuple[ConvexPolytope, IntArray]:
+    """Reduced hull of a limb's workspace and its edges, cached by the data's cache key."""
+    key = (data.cache_key, limb)
+    found = _HULLS.get(key)
+    if found is None:
+        hull = reduced_hull(data.limb(limb).workspace)
+        found = (hull, hull_edges(hull))
+        if len(_HULLS) > 256:
+            _HULLS.clear()
+        _HULLS[key] = found
+    return found
+
+
 def _convex(loop: FloatArray) -> bool:
     edge = np.roll(loop, -1, axis=0) - loop
-    turn = edge[:, 0] * np.roll(edge, -1, axis=0)[:, 1] - edge[:, 1] * np.roll(edge, -1, axis=0)[:, 0]
+    turn = (
+        edge[:, 0] * np.roll(edge, -1, axis=0)[:, 1] - edge[:, 1] * np.roll(edge, -1, axis=0)[:, 0]
+    )
     return bool(np.all(turn >= -1e-12))
 
 
@@ -240,7 +281,8 @@ class ReducedModel:
         limbs' friction, ``margin`` (m) inflates the trunk (see ``TrunkCollider``)."""
         kinds = {SurfaceKind.SUPPORT, SurfaceKind.LEAN} if lean else {SurfaceKind.SUPPORT}
         surfaces = tuple(s for s in scene.surfaces if s.kind in kinds)
-        workspaces = tuple(reduced_hull(data.limb(limb.name).workspace) for limb in character.limbs)
+        hulls = [_reduced(data, limb.name) for limb in character.limbs]
+        workspaces = tuple(hull for hull, _ in hulls)
         ref = np.zeros((len(character.limbs), 3))
         root_rot = quaternion_to_matrix(character.q_ref[3:7])
         root_pos = character.q_ref[:3]
@@ -261,7 +303,7 @@ class ReducedModel:
             scene,
             character,
             workspaces,
-            tuple(hull_edges(ws) for ws in workspaces),
+            tuple(edges for _, edges in hulls),
             surfaces,
             tuple(len(sf.polygons_uv) == 1 and _convex(sf.polygons_uv[0]) for sf in surfaces),
             ref,
@@ -303,10 +345,11 @@ class ReducedModel:
                 )
                 straddle[rows[~overlap], s_idx] = False
             for i, s_idx in zip(*np.nonzero(straddle), strict=True):
-                found = _section(
-                    world[i], self.edges[k], self.surfaces[s_idx], self.convex[s_idx]
-                )
-                if found is not None and found[0] > areas[i, k]:
+                found = _section(world[i], self.edges[k], self.surfaces[s_idx], self.convex[s_idx])
+                surface = self.surfaces[s_idx]
+                if found is not None and (
+                    not active[i, k] or surface.area > self.scene.surfaces[surf_ids[i, k]].area
+                ):
                     areas[i, k] = found[0]
                     points[i, k] = found[1]
                     normals[i, k] = self.surfaces[s_idx].normal
@@ -317,9 +360,7 @@ class ReducedModel:
     def _mus(self, n: int) -> FloatArray:
         return np.asarray(np.tile(self.mus, (n, 1)), dtype=np.float64)
 
-    def nodes(
-        self, poses: FloatArray, min_limbs: int
-    ) -> tuple[RoadmapNodes, BoolArray]:
+    def nodes(self, poses: FloatArray, min_limbs: int) -> tuple[RoadmapNodes, BoolArray]:
         """Nodes for the root poses (n, 4, 4) that are valid: trunk free, at least
         ``min_limbs`` contacts, no force closure. Returns (the valid nodes, (n,) validity)."""
         p = np.asarray(poses, dtype=np.float64).reshape(-1, 4, 4)

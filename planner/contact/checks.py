@@ -7,7 +7,9 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
+import coal
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
@@ -47,13 +49,26 @@ def com_of(ctx: ContactContext, q: FloatArray) -> FloatArray:
     return np.asarray(pin.centerOfMass(ctx.model, ctx.pin_data, q), dtype=np.float64).copy()
 
 
+def contact_points_at(
+    ctx: ContactContext, limb: str, pose: FloatArray, normal: FloatArray
+) -> FloatArray:
+    """(k, 3) world contact points of ``limb`` with its effector at ``pose`` on a surface of
+    ``normal``: patch corners from the pose; a point contact is the lowest point of its
+    sphere (frame origin minus the offset length along the normal)."""
+    spec = ctx.character.limb(limb)
+    if spec.contact == "point":
+        return np.asarray(pose[:3, 3] - np.linalg.norm(spec.offset) * normal, dtype=np.float64)[
+            None
+        ]
+    return np.asarray(spec.contact_points() @ pose[:3, :3].T + pose[:3, 3], dtype=np.float64)
+
+
 def hold_error(ctx: ContactContext, q: FloatArray, contacts: Sequence[LimbContact]) -> float:
     """Largest distance (m) between a contact's points and where ``q`` puts them."""
     forward(ctx, q)
     worst = 0.0
     for c in contacts:
-        pose = effector_pose(ctx, c.limb)
-        pts = ctx.character.limb(c.limb).contact_points() @ pose[:3, :3].T + pose[:3, 3]
+        pts = contact_points_at(ctx, c.limb, effector_pose(ctx, c.limb), c.normal)
         worst = max(worst, float(np.max(np.linalg.norm(pts - c.points, axis=1))))
     return worst
 
@@ -61,8 +76,8 @@ def hold_error(ctx: ContactContext, q: FloatArray, contacts: Sequence[LimbContac
 def make_contact(ctx: ContactContext, limb: str, pose: FloatArray, surface: int) -> LimbContact:
     """The contact of ``limb`` with its effector at ``pose`` (4, 4) on scene ``surface``."""
     spec = ctx.character.limb(limb)
-    pts = spec.contact_points() @ pose[:3, :3].T + pose[:3, 3]
     normal = ctx.scene.surfaces[surface].normal
+    pts = contact_points_at(ctx, limb, pose, normal)
     return LimbContact(limb, pose, pts, normal, float(spec.mu), int(surface))
 
 
@@ -109,7 +124,7 @@ def contact_on_surface(ctx: ContactContext, contact: LimbContact) -> bool:
     if not bool(np.all(surface.contains_projection(contact.points))):
         return False
     spec = ctx.character.limb(contact.limb)
-    limit = np.cos(ctx.params.normal_tolerance)
+    limit = float(np.cos(ctx.params.normal_tolerance))
     if float(contact.normal @ surface.normal) < limit:
         return False
     if spec.contact == "point":
@@ -118,19 +133,47 @@ def contact_on_surface(ctx: ContactContext, contact: LimbContact) -> bool:
     return float(axis @ surface.normal) >= limit
 
 
-def _collide(ctx: ContactContext, geometry: object, matrix: FloatArray) -> bool:
+_REQUEST = coal.CollisionRequest()
+
+
+def _collide(ctx: ContactContext, geometry: Any, matrix: FloatArray) -> bool:
+    """Whether a coal ``geometry`` at the world ``matrix`` (4, 4) touches the scene or an
+    obstacle (obstacles first filtered by bounding balls)."""
     # CollisionWorld has no public query for a raw coal geometry; reuse its private one.
-    return bool(ctx.world._collide(geometry, matrix))
+    hit: bool = ctx.base_world._collide(geometry, matrix)
+    if hit or not ctx.obstacle_geometry:
+        return bool(hit)
+    centre = matrix[:3, :3] @ np.asarray(geometry.aabb_center) + matrix[:3, 3]
+    radius = float(geometry.aabb_radius)
+    transform = None
+    for other, other_tf, other_centre, other_radius in ctx.obstacle_geometry:
+        gap = centre - other_centre
+        if float(gap @ gap) > (radius + other_radius) ** 2:
+            continue
+        if transform is None:
+            transform = coal.Transform3s(
+                np.ascontiguousarray(matrix[:3, :3]), np.ascontiguousarray(matrix[:3, 3])
+            )
+        result = coal.CollisionResult()
+        if coal.collide(other, other_tf, geometry, transform, _REQUEST, result):
+            return True
+    return False
 
 
-def scene_collisions(ctx: ContactContext, q: FloatArray) -> list[str]:
-    """Names of the character's collision geometries touching the scene or obstacles at q."""
+def scene_collisions(
+    ctx: ContactContext, q: FloatArray, only: Sequence[int] | NDArray[np.int64] | None = None
+) -> list[str]:
+    """Names of the character's collision geometries touching the scene or obstacles at q
+    (only the geometry indices ``only`` when given)."""
     geometry = ctx.character.geometry
     pin.updateGeometryPlacements(ctx.model, ctx.pin_data, geometry, ctx.geom_data, q)
+    objects = geometry.geometryObjects
+    indices = range(len(objects)) if only is None else [int(i) for i in only]
     hits = []
-    for obj, placement in zip(geometry.geometryObjects, ctx.geom_data.oMg, strict=True):
-        if _collide(ctx, obj.geometry, np.asarray(placement.homogeneous)):
-            hits.append(str(obj.name))
+    for i in indices:
+        placement = np.asarray(ctx.geom_data.oMg[i].homogeneous)
+        if _collide(ctx, objects[i].geometry, placement):
+            hits.append(str(objects[i].name))
     return hits
 
 

@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from planner.character import Character
 from planner.offline import OfflineData
 from planner.scene import CollisionWorld, Scene, SurfaceKind
+from planner.scene.coal_shapes import coal_geometry, shape_world_matrix, to_transform
 from planner.shapes import Box, Capsule
 from trajectory import Halfspaces
 
@@ -54,7 +55,9 @@ class ContactParams:
     lift : m, how far a freed effector is raised along the surface normal.
     allowed_surfaces : surface ids usable for contacts (None: every surface of ``kinds``).
     kinds : surface kinds usable for contacts. reach_radius : m, database samples this close
-        to a target count as reaching it with the root fixed.
+        to a target count as reaching it with the root fixed. body_reach : m, how much
+        further than the limb alone a whole-body motion may reach. max_seeds : database
+        postures tried per candidate (re-sampling a colliding limb).
     """
 
     margin: float = 1.0
@@ -67,6 +70,8 @@ class ContactParams:
     allowed_surfaces: tuple[int, ...] | None = None
     kinds: tuple[SurfaceKind, ...] = (SurfaceKind.SUPPORT,)
     reach_radius: float = 0.08
+    body_reach: float = 0.5
+    max_seeds: int = 3
     ik_iterations: int = 150
 
 
@@ -75,6 +80,7 @@ class ContactContext:
     """Everything the primitives need; build with :func:`make_context`.
 
     world : scene collision world including obstacles (e.g. other characters).
+    base_world : the same without ``obstacles`` (the (shape, (4, 4) pose) pairs added).
     surfaces : ids of the surfaces contacts may use. com_local : per limb, the COM half-spaces
     in the effector frame (2PAC Eq. 3). limb_dofs : per limb, its velocity indices (k,).
     """
@@ -88,6 +94,11 @@ class ContactContext:
     com_local: dict[str, Halfspaces]
     pin_data: Any = field(repr=False)
     geom_data: Any = field(repr=False)
+    base_world: CollisionWorld = field(repr=False)
+    obstacles: tuple[Obstacle, ...] = ()
+    obstacle_geometry: tuple[tuple[Any, Any, FloatArray, float], ...] = field(
+        default=(), repr=False
+    )
 
     @property
     def model(self) -> Any:
@@ -109,8 +120,8 @@ class ContactContext:
             self.character,
             self.data,
             self.params,
-            obstacles,
-            world=self.world,
+            (*self.obstacles, *obstacles),
+            world=self.base_world,
         )
 
 
@@ -123,7 +134,8 @@ def make_context(
     *,
     world: CollisionWorld | None = None,
 ) -> ContactContext:
-    """A context over ``scene`` with ``obstacles`` ((shape, (4, 4) world pose) pairs) added."""
+    """A context over ``scene`` (or ``world``) with ``obstacles`` ((shape, (4, 4) world pose)
+    pairs) added."""
     p = params or ContactParams()
     base = scene.collision if world is None else world
     full = base.with_obstacles(list(obstacles)) if obstacles else base
@@ -145,7 +157,22 @@ def make_context(
         com_local,
         character.model.createData(),
         pin.GeometryData(character.geometry),
+        base,
+        tuple(obstacles),
+        tuple(_obstacle_geometry(shape, pose) for shape, pose in obstacles),
     )
+
+
+def _obstacle_geometry(
+    shape: Box | Capsule, pose: FloatArray
+) -> tuple[Any, Any, FloatArray, float]:
+    """coal geometry, coal transform, bounding-ball centre (3,) and radius (m)."""
+    matrix = shape_world_matrix(shape, np.asarray(pose, dtype=np.float64))
+    if isinstance(shape, Box):
+        radius = float(np.linalg.norm(shape.half_extents))
+    else:
+        radius = float(shape.radius + shape.half_length)
+    return coal_geometry(shape), to_transform(matrix), matrix[:3, 3].copy(), radius
 
 
 def character_obstacles(character: Character, q: FloatArray) -> list[Obstacle]:

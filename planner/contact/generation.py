@@ -8,7 +8,7 @@ Every primitive returns a structured result; none raises on an infeasible reques
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,16 +17,16 @@ from numpy.typing import NDArray
 
 from planner.contact.checks import (
     balance_margin,
-    hold_error,
     check_state,
     collision_free,
     com_of,
     contact_on_surface,
+    contact_points_at,
     effector_pose,
     forward,
+    hold_error,
     kinematics_of,
     make_contact,
-    phase_of,
     shrunk_equilibrium,
 )
 from planner.contact.context import (
@@ -45,12 +45,13 @@ from planner.kinematics import (
     IkResult,
     PostureTask,
     Priority,
+    TargetTask,
     Task,
     project_contact,
     solve_ik,
 )
 from planner.scene import Surface
-from trajectory import equilibrium_halfspaces, transition_point
+from trajectory import Halfspaces, transition_point
 
 FloatArray = NDArray[np.float64]
 
@@ -65,6 +66,7 @@ __all__ = [
     "maintain",
     "make_context",
     "stand_state",
+    "state_from_configuration",
 ]
 
 _HOLD_TOL = 1e-3  # m, a held contact further than this from its placement is lost
@@ -83,6 +85,7 @@ class ContactAttempt:
     ok : success. state : the new state (the input state on failure). reason : why it
     failed (None on success). candidates_tried : surface targets projected. message : detail.
     limb : the limb acted on. surface : surface id of a created contact (-1 otherwise).
+    resampled : colliding limb postures replaced by another database sample.
     """
 
     ok: bool
@@ -92,6 +95,7 @@ class ContactAttempt:
     message: str
     limb: str
     surface: int = -1
+    resampled: int = 0
 
 
 def _fail(
@@ -107,14 +111,14 @@ def posture_task(ctx: ContactContext, gain: float = 0.3) -> PostureTask:
     return PostureTask(ctx.character.q_ref, weights, gain=gain)
 
 
-def hold_tasks(contacts: Sequence[LimbContact], ctx: ContactContext) -> list[Task]:
+def hold_tasks(contacts: Sequence[LimbContact], ctx: ContactContext) -> list[TargetTask]:
     """Contact-tier tasks keeping each contact's effector at its placement."""
-    out: list[Task] = []
+    out: list[TargetTask] = []
     for c in contacts:
         spec = ctx.character.limb(c.limb)
         if spec.contact == "point":
-            goal = c.placement[:3, :3] @ spec.offset + c.placement[:3, 3]
-            out.append(FramePositionTask(spec.frame_id, goal, spec.offset, Priority.CONTACT))
+            goal = c.placement[:3, 3]
+            out.append(FramePositionTask(spec.frame_id, goal, np.zeros(3), Priority.CONTACT))
         else:
             out.append(FramePlacementTask(spec.frame_id, c.placement, Priority.CONTACT))
     return out
@@ -199,6 +203,21 @@ def _point_on(surface: Surface, desired: FloatArray, radius: float) -> FloatArra
     return None
 
 
+_BOUNDS: dict[int, tuple[Surface, float]] = {}
+
+
+def _bound(surface: Surface) -> float:
+    """Radius (m) of the smallest centroid-centred ball containing ``surface``'s polygons."""
+    hit = _BOUNDS.get(id(surface))
+    if hit is None or hit[0] is not surface:
+        pts = np.concatenate(surface.polygons)
+        hit = (surface, float(np.max(np.linalg.norm(pts - surface.centroid, axis=1))))
+        if len(_BOUNDS) > 4096:
+            _BOUNDS.clear()
+        _BOUNDS[id(surface)] = hit
+    return hit[1]
+
+
 def _patch_radius(ctx: ContactContext, limb: str) -> float:
     spec = ctx.character.limb(limb)
     pts = spec.contact_points() - spec.offset
@@ -221,6 +240,7 @@ def _candidates(
     surfaces: Sequence[int],
     target: FloatArray | None,
     lookahead: FloatArray | None,
+    randomness: float,
 ) -> list[_Candidate]:
     spec = ctx.character.limb(limb)
     db = ctx.data.limb(limb).database
@@ -230,12 +250,20 @@ def _candidates(
     nominal = root[:3, :3] @ db.positions[0] + root[:3, 3]
     base = np.asarray(ctx.pin_data.oMi[ctx.model.getJointId(spec.root_joint)].translation)
     hip_root = root[:3, :3].T @ (base - root[:3, 3])
-    reach = float(np.max(np.linalg.norm(db.positions - hip_root, axis=1))) + 0.5
+    reach = float(np.max(np.linalg.norm(db.positions - hip_root, axis=1))) + ctx.params.body_reach
     radius = _patch_radius(ctx, limb)
     desired = target if target is not None else 0.5 * (current + nominal)
     others = [c for c in state.contacts if c.limb != limb]
+    # cheap pre-selection on bounding discs before the exact (slower) surface queries
+    ids = np.asarray(surfaces, dtype=np.int64)
+    centres = np.array([ctx.scene.surfaces[i].centroid for i in ids]).reshape(-1, 3)
+    bounds = np.array([_bound(ctx.scene.surfaces[i]) for i in ids])
+    lower = np.maximum(np.linalg.norm(centres - desired, axis=1) - bounds, 0.0)
+    keep = np.linalg.norm(centres - base, axis=1) - bounds <= reach
+    order = np.argsort(np.where(keep, lower, np.inf), kind="stable")
+    order = order[keep[order]][: 2 * ctx.params.max_candidates + 2]
     out: list[_Candidate] = []
-    for sid in surfaces:
+    for sid in ids[order].tolist():
         surface = ctx.scene.surfaces[sid]
         point = _point_on(surface, desired, radius)
         if point is None:
@@ -243,7 +271,7 @@ def _candidates(
         if np.linalg.norm(point - base) > reach:
             continue
         if any(
-            np.min(np.linalg.norm(c.points - point, axis=1)) < radius + 0.06 for c in others
+            np.min(np.linalg.norm(c.points - point, axis=1)) < 0.5 * radius + 0.02 for c in others
         ):
             continue
         local = root[:3, :3].T @ (point - root[:3, 3])
@@ -256,7 +284,7 @@ def _candidates(
             score += float(np.linalg.norm(point - lookahead))
         if len(seeds) == 0:
             score += 0.5  # needs the whole body
-        score += 0.05 * float(rng.random())
+        score += randomness * float(rng.random())
         out.append(_Candidate(score, sid, point, seeds))
     out.sort(key=lambda c: c.score)
     return out[: ctx.params.max_candidates]
@@ -265,8 +293,8 @@ def _candidates(
 def _contact_task(ctx: ContactContext, limb: str, point: FloatArray, normal: FloatArray) -> Task:
     spec = ctx.character.limb(limb)
     if spec.contact == "point":
-        goal = point + ctx.params.clearance * normal
-        return FramePositionTask(spec.frame_id, goal, spec.offset, Priority.CONTACT)
+        goal = point + (ctx.params.clearance + float(np.linalg.norm(spec.offset))) * normal
+        return FramePositionTask(spec.frame_id, goal, np.zeros(3), Priority.CONTACT)
     return ContactNormalTask(
         spec.frame_id,
         point + ctx.params.clearance * normal,
@@ -277,14 +305,15 @@ def _contact_task(ctx: ContactContext, limb: str, point: FloatArray, normal: Flo
     )
 
 
-def _project(
+def _projections(
     ctx: ContactContext, state: ContactState, limb: str, cand: _Candidate
-) -> FloatArray | None:
-    """Configurations putting ``limb`` on the candidate: root fixed first, else whole body."""
+) -> Iterator[FloatArray]:
+    """Configurations putting ``limb`` on the candidate: root fixed from each database seed
+    (re-sampling the limb posture, 2PAC 7.2), then the whole body with the contacts held."""
     spec = ctx.character.limb(limb)
     db = ctx.data.limb(limb).database
     normal = ctx.scene.surfaces[cand.surface].normal
-    for idx in cand.seeds[:2]:
+    for idx in cand.seeds[: ctx.params.max_seeds]:
         q0 = np.array(state.q)
         q0[spec.idx_q] = db.q[idx]
         if spec.contact == "point":
@@ -297,7 +326,7 @@ def _project(
                 max_iterations=ctx.params.ik_iterations,
             )
             if res.success:
-                return np.array(res.q)
+                yield np.array(res.q)
             continue
         res = project_contact(
             ctx.model,
@@ -314,7 +343,7 @@ def _project(
             data=ctx.pin_data,
         )
         if res.success:
-            return np.array(res.q)
+            yield np.array(res.q)
     com = com_of(ctx, state.q)
     res = balance_ik(
         ctx,
@@ -326,8 +355,7 @@ def _project(
         moving=(limb,),
     )
     if res.residuals[len(state.contacts) + 1, 0] <= 1e-3 and _holds(ctx, res.q, state.contacts):
-        return np.array(res.q)
-    return None
+        yield np.array(res.q)
 
 
 def _balanced_after_create(
@@ -356,10 +384,7 @@ def _balanced_after_create(
     if not _holds(ctx, q2, after):
         return None, FailureReason.NOT_BALANCED
     com2 = com_of(ctx, q2)
-    if (
-        balance_margin(ctx, before.contacts, com2) < ctx.params.margin
-        or kin.violation(com2) > 1e-3
-    ):
+    if balance_margin(ctx, before.contacts, com2) < ctx.params.margin or kin.violation(com2) > 1e-3:
         return None, FailureReason.NOT_BALANCED
     return q2, None
 
@@ -373,6 +398,7 @@ def create_contact(
     surface: int | None = None,
     target: FloatArray | None = None,
     lookahead: FloatArray | None = None,
+    randomness: float = 0.05,
 ) -> ContactAttempt:
     """Put the free ``limb`` on an allowed surface (``surface`` id, or near ``target`` (3,)).
 
@@ -381,7 +407,9 @@ def create_contact(
     ``lookahead`` (3,); each is projected by IK (limb only from database seeds, else whole
     body with the other contacts held) and checked: contact on the surface, no collision,
     the new COM balanced on the old contacts with the margin and inside the new kinematic set
-    (so the 2PAC transition exists). The first candidate passing wins.
+    (so the 2PAC transition exists). The first candidate passing wins; a colliding limb
+    posture is re-sampled from the next database seed. ``randomness`` (m) is the scale of
+    a uniform score jitter drawn from ``rng`` (ties and game-like variety).
     """
     if not ctx.has_limb(limb):
         return _fail(state, FailureReason.UNKNOWN_LIMB, limb, f"unknown limb {limb!r}")
@@ -397,40 +425,35 @@ def create_contact(
         surfaces = ctx.surfaces
     tgt = None if target is None else np.asarray(target, dtype=np.float64).reshape(3)
     look = None if lookahead is None else np.asarray(lookahead, dtype=np.float64).reshape(3)
-    cands = _candidates(ctx, state, limb, rng, surfaces, tgt, look)
+    cands = _candidates(ctx, state, limb, rng, surfaces, tgt, look, randomness)
     if not cands:
         return _fail(state, FailureReason.NOTHING_REACHABLE, limb, "no surface within reach")
     worst = FailureReason.NOTHING_REACHABLE
-    c_prev = com_of(ctx, state.q)
+    resampled = 0
     for tried, cand in enumerate(cands, start=1):
-        q = _project(ctx, state, limb, cand)
-        if q is None:
-            continue
-        pose = effector_pose(ctx, limb, q)
-        contact = make_contact(ctx, limb, pose, cand.surface)
-        if not contact_on_surface(ctx, contact):
-            worst = max(worst, FailureReason.NOT_IN_CONTACT, key=_STAGE.__getitem__)
-            continue
-        q2, why = _balanced_after_create(ctx, state, q, contact)
-        if q2 is None:
-            worst = max(worst, why or FailureReason.NOT_BALANCED, key=_STAGE.__getitem__)
-            continue
-        if not collision_free(ctx, q2):
-            worst = max(worst, FailureReason.COLLISION, key=_STAGE.__getitem__)
-            continue
-        new = state.with_contact(contact, q2)
-        tp = transition_point(
-            equilibrium_halfspaces(phase_of(ctx, state.contacts)),
-            equilibrium_halfspaces(phase_of(ctx, new.contacts)),
-            c_prev,
-            kin_prev=kinematics_of(ctx, state.contacts),
-            kin_next=kinematics_of(ctx, new.contacts),
-        )
-        report = check_state(ctx, new)
-        if not tp.feasible or not report.valid:
-            worst = max(worst, FailureReason.NOT_BALANCED, key=_STAGE.__getitem__)
-            continue
-        return ContactAttempt(True, new, None, tried, "", limb, cand.surface)
+        for q in _projections(ctx, state, limb, cand):
+            pose = effector_pose(ctx, limb, q)
+            contact = make_contact(ctx, limb, pose, cand.surface)
+            if not contact_on_surface(ctx, contact):
+                worst = max(worst, FailureReason.NOT_IN_CONTACT, key=_STAGE.__getitem__)
+                continue
+            q2, why = _balanced_after_create(ctx, state, q, contact)
+            if q2 is None:
+                worst = max(worst, why or FailureReason.NOT_BALANCED, key=_STAGE.__getitem__)
+                break
+            if not collision_free(ctx, q2):
+                worst = max(worst, FailureReason.COLLISION, key=_STAGE.__getitem__)
+                resampled += 1
+                continue  # re-sample the limb posture
+            new = state.with_contact(contact, q2)
+            # 2PAC witness: the new COM lies in equilibrium(before) (checked with the margin
+            # by _balanced_after_create) and in kinematics(before) and kinematics(after).
+            report = check_state(ctx, new)
+            witness = kinematics_of(ctx, state.contacts).violation(report.com) <= 1e-3
+            if not witness or not report.valid:
+                worst = max(worst, FailureReason.NOT_BALANCED, key=_STAGE.__getitem__)
+                break
+            return ContactAttempt(True, new, None, tried, "", limb, cand.surface, resampled)
     return _fail(state, worst, limb, f"no candidate of {len(cands)} passed", len(cands))
 
 
@@ -450,7 +473,7 @@ def break_contact(ctx: ContactContext, state: ContactState, limb: str) -> Contac
     kin_after = kinematics_of(ctx, after)
     tp = transition_point(
         shrunk_equilibrium(ctx, after),
-        equilibrium_halfspaces(phase_of(ctx, state.contacts)),
+        Halfspaces(np.zeros((0, 3)), np.zeros(0)),  # equilibrium(before) contains it
         com,
         kin_prev=kin_before,
         kin_next=kin_after,
@@ -463,7 +486,9 @@ def break_contact(ctx: ContactContext, state: ContactState, limb: str) -> Contac
         return _fail(state, FailureReason.NOT_BALANCED, limb, "COM shift not reachable", 1)
     com1 = com_of(ctx, q1)
     if balance_margin(ctx, after, com1) < ctx.params.margin:
-        msg = f"COM shift not balanced: {balance_margin(ctx, after, com1):.3g} N, {com1}, {tp.point}"
+        msg = (
+            f"COM shift not balanced: {balance_margin(ctx, after, com1):.3g} N, {com1}, {tp.point}"
+        )
         return _fail(state, FailureReason.NOT_BALANCED, limb, msg, 1)
     spec = ctx.character.limb(limb)
     lifted = old.placement[:3, 3] + ctx.params.lift * old.normal
@@ -482,7 +507,9 @@ def break_contact(ctx: ContactContext, state: ContactState, limb: str) -> Contac
         new = ContactState(q1, after)
         report = check_state(ctx, new)
     if not report.valid:
-        reason = FailureReason.COLLISION if not report.collision_free else FailureReason.NOT_BALANCED
+        reason = (
+            FailureReason.COLLISION if not report.collision_free else FailureReason.NOT_BALANCED
+        )
         return _fail(state, reason, limb, f"released state invalid: {report}", 1)
     return ContactAttempt(True, new, None, 1, "", limb)
 
@@ -524,3 +551,46 @@ def stand_state(
     if not report.valid:
         return _fail(state, FailureReason.INVALID_STATE, "", f"standing state invalid: {report}")
     return ContactAttempt(True, state, None, 1, "", "")
+
+
+def state_from_configuration(
+    ctx: ContactContext, q: FloatArray, contacts: Mapping[str, int | None]
+) -> ContactAttempt:
+    """A state from a configuration ``q`` (nq,) and the limbs in contact, each with its
+    surface id or None (then the allowed surface nearest to the contact points). The
+    contacts are placed where ``q`` puts the effectors; the state is validated with
+    :func:`check_state` (INVALID_STATE on failure, with the report in the message)."""
+    qq = np.asarray(q, dtype=np.float64)
+    empty = ContactState(qq, ())
+    if qq.shape != (ctx.model.nq,) or not np.all(np.isfinite(qq)):
+        return _fail(empty, FailureReason.INVALID_STATE, "", f"q must be ({ctx.model.nq},)")
+    placed: list[LimbContact] = []
+    for limb, sid in contacts.items():
+        if not ctx.has_limb(limb):
+            return _fail(empty, FailureReason.UNKNOWN_LIMB, limb, f"unknown limb {limb!r}")
+        pose = effector_pose(ctx, limb, qq)
+        if sid is None:
+            sid = _nearest_surface(ctx, limb, pose)
+            if sid is None:
+                return _fail(empty, FailureReason.NOT_IN_CONTACT, limb, f"{limb}: no surface")
+        elif not 0 <= sid < len(ctx.scene.surfaces):
+            return _fail(empty, FailureReason.UNKNOWN_SURFACE, limb, f"surface {sid} unknown")
+        placed.append(make_contact(ctx, limb, pose, int(sid)))
+    state = ContactState(qq, tuple(placed))
+    report = check_state(ctx, state)
+    if not report.valid:
+        return _fail(state, FailureReason.INVALID_STATE, "", f"state invalid: {report}")
+    return ContactAttempt(True, state, None, 0, "", "")
+
+
+def _nearest_surface(ctx: ContactContext, limb: str, pose: FloatArray) -> int | None:
+    best: tuple[float, int] | None = None
+    for sid in ctx.surfaces:
+        surface = ctx.scene.surfaces[sid]
+        pts = contact_points_at(ctx, limb, pose, surface.normal)
+        gap = float(np.max(np.abs(surface.height(pts))))
+        if gap > ctx.params.surface_tolerance or not bool(np.all(surface.contains_projection(pts))):
+            continue
+        if best is None or gap < best[0]:
+            best = (gap, sid)
+    return None if best is None else best[1]

@@ -160,21 +160,22 @@ class ReachabilityChecker:
         self.required_limbs = required
         self.allowed_kinds: Mapping[str, frozenset[SurfaceKind]] = kinds
         self.workspaces = tuple(
-            simplified_workspace(data.limb(name).workspace, workspace_directions)
-            for name in names
+            simplified_workspace(data.limb(name).workspace, workspace_directions) for name in names
         )
         worlds: dict[frozenset[SurfaceKind], CollisionWorld | None] = {}
         for kind_set in set(kinds.values()):
             worlds[kind_set] = _sub_world(scene, kind_set)
         self._limb_worlds = tuple(worlds[kinds[name]] for name in names)
-        self._trunk_world = scene.collision.with_obstacles(obstacles) if obstacles else (
-            scene.collision)
+        self._trunk_world = (
+            scene.collision.with_obstacles(obstacles) if obstacles else (scene.collision)
+        )
         self.offsets = reference_offsets(character)
         self.radius = max(_shape_radius(shape) for shape in character.trunk)
         if bounds is None:
             lo, hi = scene.bounds
             height = float(character.q_ref[2]) + 0.5
-            bounds = np.array([lo - [1.0, 1.0, 0.5], hi + [1.0, 1.0, height]])
+            grow = np.array([1.0, 1.0, 0.5]), np.array([1.0, 1.0, height])
+            bounds = np.array([lo - grow[0], hi + grow[1]])
         self.bounds = np.asarray(bounds, dtype=np.float64).reshape(2, 3)
 
     def in_bounds(self, poses: FloatArray) -> BoolArray:

@@ -30,8 +30,11 @@ def _rotation_log(rotation: FloatArray) -> FloatArray:
     cos = float(np.clip((np.trace(rotation) - 1.0) / 2.0, -1.0, 1.0))
     angle = math.acos(cos)
     axis = np.array(
-        [rotation[2, 1] - rotation[1, 2], rotation[0, 2] - rotation[2, 0],
-         rotation[1, 0] - rotation[0, 1]]
+        [
+            rotation[2, 1] - rotation[1, 2],
+            rotation[0, 2] - rotation[2, 0],
+            rotation[1, 0] - rotation[0, 1],
+        ]
     )
     if angle < 1e-9:
         return 0.5 * axis
@@ -134,8 +137,9 @@ class RootPath:
         if len(self.poses) == 1:
             out[:] = self.poses[0]
             return out[0] if scalar else out
-        segment = np.clip(np.searchsorted(self.lengths, values, side="right") - 1, 0,
-                          len(self.poses) - 2)
+        segment = np.clip(
+            np.searchsorted(self.lengths, values, side="right") - 1, 0, len(self.poses) - 2
+        )
         for i in np.unique(segment):
             rows = segment == i
             span = self.lengths[i + 1] - self.lengths[i]
@@ -184,20 +188,36 @@ def _steer(
         return None, True
     target = b if d <= max_length else interpolate_poses(a, b, np.array([max_length / d]))[0]
     poses = edge_poses(a, target, step, checker.radius)
-    ok = checker.valid(poses)
-    if ok.all():
+    first = first_invalid(checker, poses)
+    if first == len(poses):
         return target, target is b
-    last = int(np.argmin(ok)) - 1  # poses[0] = a is valid, so last >= 0
+    last = first - 1  # poses[0] = a is valid, so last >= 0
     if last < 1:
         return None, False
     reached = poses[last]
-    if not checker.valid(edge_poses(a, reached, step, checker.radius)).all():
+    if not _edge_valid(checker, a, reached, step):
         return None, False
     return reached, False
 
 
+def first_invalid(checker: ReachabilityChecker, poses: FloatArray, stride: int = 8) -> int:
+    """Index of the first of the (n, 4, 4) poses failing the condition, n if none does.
+
+    Coarse to fine: every ``stride``-th pose first, then only the poses before the first
+    coarse failure, so a blocked edge usually costs a fraction of a full check.
+    """
+    n = len(poses)
+    coarse = np.arange(0, n, stride)
+    bad = np.flatnonzero(~checker.valid(poses[coarse]))
+    end = int(coarse[bad[0]]) if len(bad) else n
+    rest = np.setdiff1d(np.arange(end), coarse)
+    failing = rest[~checker.valid(poses[rest])] if len(rest) else rest
+    return int(failing[0]) if len(failing) else end
+
+
 def _edge_valid(checker: ReachabilityChecker, a: FloatArray, b: FloatArray, step: float) -> bool:
-    return bool(checker.valid(edge_poses(a, b, step, checker.radius)).all())
+    poses = edge_poses(a, b, step, checker.radius)
+    return first_invalid(checker, poses) == len(poses)
 
 
 def shortcut(
@@ -207,15 +227,21 @@ def shortcut(
     rng: np.random.Generator,
     until: Termination,
     step: float = 0.05,
-    iterations: int = 60,
+    iterations: int = 40,
+    patience: int = 15,
 ) -> RootPath:
-    """Random shortcut: replace the stretch between two random arc lengths by a straight edge
-    when that edge (and the two cut edges) are valid and it is shorter."""
-    poses = [p for p in path.poses]
-    current = path
+    """Shorten a valid path: first skip waypoints greedily (from each kept waypoint, the
+    farthest one joined by a valid straight edge), then random shortcuts: replace the stretch
+    between two random arc lengths by a straight edge when that edge (and the two cut edges)
+    are valid and it is shorter; stop after ``iterations`` tries or ``patience`` failures in a
+    row."""
+    poses = _skip_waypoints(checker, list(path.poses), step, until)
+    current = RootPath.from_poses(np.stack(poses), checker.radius)
+    misses = 0
     for _ in range(iterations):
-        if until() or current.length < 1e-6 or len(poses) < 3:
+        if until() or current.length < 1e-6 or len(poses) < 3 or misses >= patience:
             break
+        misses += 1
         s1, s2 = np.sort(rng.uniform(0.0, current.length, size=2))
         if s2 - s1 < 2 * step:
             continue
@@ -235,7 +261,25 @@ def shortcut(
             continue
         poses = new
         current = RootPath.from_poses(np.stack(poses), checker.radius)
+        misses = 0
     return current
+
+
+def _skip_waypoints(
+    checker: ReachabilityChecker, poses: list[FloatArray], step: float, until: Termination
+) -> list[FloatArray]:
+    out = [poses[0]]
+    i = 0
+    while i < len(poses) - 1:
+        j = i + 1
+        if not until():
+            for k in range(len(poses) - 1, i + 1, -1):
+                if _edge_valid(checker, poses[i], poses[k], step):
+                    j = k
+                    break
+        out.append(poses[j])
+        i = j
+    return out
 
 
 def plan_root_path(
@@ -249,17 +293,19 @@ def plan_root_path(
     max_iterations: int = 20_000,
     max_extension: float = 1.0,
     orientation_bounds: OrientationBounds | None = None,
-    shortcut_iterations: int = 60,
+    shortcut_iterations: int = 40,
 ) -> PlanResult[RootPath]:
     """Bidirectional RRT (RRT-Connect) from ``start`` to ``goal`` (4, 4 root poses, world).
 
     Samples come from :func:`sample_root_poses` within ``orientation_bounds``; trees alternate,
     each extension goes at most ``max_extension`` m toward the sample and the other tree then
     tries to connect to the new node. Edges are checked every ``step`` m (<= 0.05 m by
-    default). The solution is shortcut (``shortcut_iterations`` tries). Statuses:
-    INVALID_START / INVALID_GOAL when an endpoint fails the reachability condition, TIMEOUT
-    when ``until`` fires or ``max_iterations`` run out first, INFEASIBLE when no sample can be
-    drawn, SOLVED with the path otherwise. ``until`` is polled once per iteration.
+    default). The solution is then shortened by :func:`shortcut` (``shortcut_iterations``
+    random tries). Statuses: INVALID_START / INVALID_GOAL when an endpoint fails the
+    reachability condition, TIMEOUT when ``until`` fires or ``max_iterations`` run out first,
+    INFEASIBLE when no sample can be drawn, SOLVED with the path otherwise. ``until`` is polled
+    once per iteration; ``stats`` has iterations, nodes, raw_length, length, waypoints and
+    seconds.
     """
     clock = time.perf_counter()
     a = np.asarray(start, dtype=np.float64).reshape(4, 4)
@@ -278,17 +324,27 @@ def plan_root_path(
     iteration = 0
     while found is None:
         if until() or iteration >= max_iterations:
-            stats = {"iterations": iteration, "nodes": sum(len(t.poses) for t in trees),
-                     "seconds": time.perf_counter() - clock}
-            return PlanResult(PlanStatus.TIMEOUT, None, stats, "no path before the deadline")
+            partial: dict[str, float | int | str] = {
+                "iterations": iteration,
+                "nodes": sum(len(t.poses) for t in trees),
+                "seconds": time.perf_counter() - clock,
+            }
+            return PlanResult(PlanStatus.TIMEOUT, None, partial, "no path before the deadline")
         if not pool:
-            pool = list(sample_root_poses(checker, 16, rng=rng, orientation_bounds=orientation_bounds,
-                                          max_rounds=4)[::-1])
+            pool = list(
+                sample_root_poses(
+                    checker, 16, rng=rng, orientation_bounds=orientation_bounds, max_rounds=4
+                )[::-1]
+            )
             if not pool:
                 empty_refills += 1
                 if empty_refills >= 5:
-                    return PlanResult(PlanStatus.INFEASIBLE, None,
-                                      {"iterations": iteration}, "no valid root sample found")
+                    return PlanResult(
+                        PlanStatus.INFEASIBLE,
+                        None,
+                        {"iterations": iteration},
+                        "no valid root sample found",
+                    )
                 continue
         target = pool.pop()
         grow, other = (trees[0], trees[1]) if iteration % 2 == 0 else (trees[1], trees[0])
@@ -308,8 +364,7 @@ def plan_root_path(
     first = trees[0].branch(found[0])
     second = trees[1].branch(found[1])[::-1]
     raw = RootPath.from_poses(np.stack([*first, *second]), radius)
-    final = shortcut(checker, raw, rng=rng, until=until, step=step,
-                     iterations=shortcut_iterations)
+    final = shortcut(checker, raw, rng=rng, until=until, step=step, iterations=shortcut_iterations)
     stats: dict[str, float | int | str] = {
         "iterations": iteration,
         "nodes": sum(len(t.poses) for t in trees),

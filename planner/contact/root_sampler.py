@@ -44,9 +44,15 @@ def euler_matrices(yaw: FloatArray, pitch: FloatArray, roll: FloatArray) -> Floa
     cr, sr = np.cos(roll), np.sin(roll)
     out = np.stack(
         [
-            cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr,
-            sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr,
-            -sp, cp * sr, cp * cr,
+            cy * cp,
+            cy * sp * sr - sy * cr,
+            cy * sp * cr + sy * sr,
+            sy * cp,
+            sy * sp * sr + cy * cr,
+            sy * sp * cr - cy * sr,
+            -sp,
+            cp * sr,
+            cp * cr,
         ],
         axis=-1,
     )
@@ -86,13 +92,12 @@ def _triangles(checker: ReachabilityChecker) -> _Triangles:
     if not verts:
         empty = np.zeros((0, 3))
         return _Triangles(np.zeros((0, 3, 3)), empty, np.zeros(0), ())
-    return _Triangles(np.concatenate(verts), np.concatenate(normals), np.concatenate(areas),
-                      tuple(limbs))
+    return _Triangles(
+        np.concatenate(verts), np.concatenate(normals), np.concatenate(areas), tuple(limbs)
+    )
 
 
-_CACHE: weakref.WeakKeyDictionary[ReachabilityChecker, _Triangles] = (
-    weakref.WeakKeyDictionary()
-)
+_CACHE: weakref.WeakKeyDictionary[ReachabilityChecker, _Triangles] = weakref.WeakKeyDictionary()
 
 
 def _cached_triangles(checker: ReachabilityChecker) -> _Triangles:
@@ -156,8 +161,11 @@ def sample_root_poses(
         r1, r2 = rng.random(batch), rng.random(batch)
         s = np.sqrt(r1)
         tv = tris.vertices[pick]
-        points = (1.0 - s)[:, None] * tv[:, 0] + (s * (1.0 - r2))[:, None] * tv[:, 1] + (
-            s * r2)[:, None] * tv[:, 2]
+        points = (
+            (1.0 - s)[:, None] * tv[:, 0]
+            + (s * (1.0 - r2))[:, None] * tv[:, 1]
+            + (s * r2)[:, None] * tv[:, 2]
+        )
         rotations = euler_matrices(
             rng.uniform(*bounds.yaw, size=batch),
             rng.uniform(*bounds.pitch, size=batch),

@@ -13,7 +13,6 @@ the reachability condition and the COM is in static equilibrium with a robustnes
 from __future__ import annotations
 
 import math
-import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -25,11 +24,23 @@ from numpy.typing import NDArray
 from planner.character import Character, Limb
 from planner.contact.reachability import ReachabilityChecker, ground_limbs
 from planner.contact.state import ContactState, LimbContact
-from planner.kinematics import project_contact, within_limits
+from planner.kinematics import (
+    FramePositionTask,
+    IkResult,
+    PostureTask,
+    Priority,
+    Task,
+    limb_dofs,
+    project_contact,
+    scratch_data,
+    solve_ik,
+    within_limits,
+)
 from planner.offline import OfflineData
 from planner.poses import matrix_to_quaternion, pose_matrix, yaw_matrix
 from planner.result import PlanResult, PlanStatus
 from planner.scene import Scene, Surface, SurfaceKind
+from planner.shapes import Box
 from planner.termination import Termination, never
 from trajectory import Contact, ContactPhase, equilibrium_margin
 
@@ -40,9 +51,11 @@ CONTACT_TOLERANCE = 0.005
 NORMAL_TOLERANCE = 0.02
 """Largest angle (rad) between the effector contact normal and the surface normal."""
 EXEMPT_DISTANCE = 0.01
-"""Geometries of a contacting effector's link closer than this (m) to its contact points are
-allowed to touch the scene (they carry the contact)."""
+"""Geometries of a contacting effector's link closer than this (m) to its contact points (or,
+for ground limbs, reaching this close to the ground in ``q_ref``) may touch the scene: they
+carry the contact."""
 GRAVITY = 9.81
+_HEADINGS = 16  # root yaws tried, evenly spread, when none is imposed
 
 
 @dataclass(frozen=True, slots=True)
@@ -58,7 +71,7 @@ class StandingParams:
     """
 
     margin: float = 0.05
-    attempts: int = 24
+    attempts: int = 32
     jitter: float = 0.04
     search_height: float = 0.35
     posture_weight: float = 0.5
@@ -72,22 +85,21 @@ class _BodyGeometry:
     exempt: dict[str, frozenset[int]]
 
 
-_GEOMETRY: weakref.WeakValueDictionary[int, Character] = weakref.WeakValueDictionary()
-_GEOMETRY_DATA: dict[int, _BodyGeometry] = {}
+_GEOMETRY: dict[int, tuple[Character, _BodyGeometry]] = {}  # characters are few and memoised
 
 
 def _body_geometry(character: Character) -> _BodyGeometry:
     key = id(character)
-    if _GEOMETRY.get(key) is character and key in _GEOMETRY_DATA:
-        return _GEOMETRY_DATA[key]
+    hit = _GEOMETRY.get(key)
+    if hit is not None and hit[0] is character:
+        return hit[1]
     model, gmodel = character.model, character.geometry
     data = model.createData()
     pin.framesForwardKinematics(model, data, character.q_ref)
-    objects = tuple(
-        (int(o.parentJoint), o.geometry, o.placement) for o in gmodel.geometryObjects
-    )
+    objects = tuple((int(o.parentJoint), o.geometry, o.placement) for o in gmodel.geometryObjects)
     request, result = coal.DistanceRequest(), coal.DistanceResult()
     exempt: dict[str, frozenset[int]] = {}
+    grounded = ground_limbs(character)
     for limb in character.limbs:
         placement = data.oMf[limb.frame_id]
         points = limb.contact_points() @ np.array(placement.rotation).T + placement.translation
@@ -98,6 +110,14 @@ def _body_geometry(character: Character) -> _BodyGeometry:
                 continue
             world = data.oMi[parent] * offset
             tf = coal.Transform3s(np.array(world.rotation), np.array(world.translation))
+            geometry.computeLocalAABB()
+            lo, hi = np.array(geometry.aabb_local.min_), np.array(geometry.aabb_local.max_)
+            box = np.array(
+                [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+            )
+            lowest = float((box @ np.array(world.rotation).T + world.translation)[:, 2].min())
+            if limb.name in grounded and lowest < EXEMPT_DISTANCE:
+                near.add(g)
             for point in points:
                 result.clear()
                 probe = coal.Transform3s(np.eye(3), np.asarray(point, dtype=np.float64))
@@ -106,8 +126,9 @@ def _body_geometry(character: Character) -> _BodyGeometry:
                     near.add(g)
         exempt[limb.name] = frozenset(near)
     out = _BodyGeometry(objects, exempt)
-    _GEOMETRY[key] = character
-    _GEOMETRY_DATA[key] = out
+    if len(_GEOMETRY) > 64:
+        _GEOMETRY.clear()
+    _GEOMETRY[key] = (character, out)
     return out
 
 
@@ -118,7 +139,7 @@ def body_collides_scene(
     geometry carrying the contacts of ``contact_limbs`` excepted."""
     body = _body_geometry(character)
     model = character.model
-    data = model.createData()
+    data = scratch_data(model)
     pin.forwardKinematics(model, data, np.asarray(q, dtype=np.float64))
     skip: set[int] = set()
     for name in contact_limbs:
@@ -141,15 +162,17 @@ def self_collides(character: Character, q: FloatArray) -> bool:
     """Whether the character at ``q`` (nq,) collides with itself (declared pairs only)."""
     model, gmodel = character.model, character.geometry
     data, gdata = model.createData(), pin.GeometryData(gmodel)
-    return bool(pin.computeCollisions(model, data, gmodel, gdata,
-                                      np.asarray(q, dtype=np.float64), True))
+    return bool(
+        pin.computeCollisions(model, data, gmodel, gdata, np.asarray(q, dtype=np.float64), True)
+    )
 
 
 def _support_below(
     scene: Scene, point: FloatArray, search_height: float
 ) -> tuple[Surface, FloatArray] | None:
-    """The Support surface whose closest point to ``point`` (3,) is nearest in height (within
-    ``search_height``), and that closest point (3,); None when there is none."""
+    """The topmost Support surface under ``point`` (3,) whose closest point is within
+    ``search_height`` of it in height (lower ones are hidden below it), and that closest point
+    (3,); None when there is none."""
     best: tuple[float, Surface, FloatArray] | None = None
     for surface in scene.surfaces_of(SurfaceKind.SUPPORT):
         corners = surface.triangle_vertices.reshape(-1, 3)
@@ -159,10 +182,46 @@ def _support_below(
         if not surface.contains_projection(point[None])[0]:
             continue
         target = surface.closest_point(point[None])[0]
-        gap = abs(float(target[2] - point[2]))
-        if gap <= search_height and (best is None or gap < best[0]):
-            best = (gap, surface, target)
+        if abs(float(target[2] - point[2])) <= search_height and (
+            best is None or target[2] > best[0]
+        ):
+            best = (float(target[2]), surface, target)
     return None if best is None else (best[1], best[2])
+
+
+def _project(
+    model: pin.Model,
+    limb: Limb,
+    q: FloatArray,
+    target: FloatArray,
+    normal: FloatArray,
+    reference: FloatArray,
+    params: StandingParams,
+    data: pin.Data,
+) -> IkResult:
+    """IK of one limb onto ``target``: patches align their normal, points only their position."""
+    if limb.contact == "patch":
+        return project_contact(
+            model,
+            q,
+            limb.root_joint,
+            limb.effector_frame,
+            target,
+            normal,
+            contact_normal=limb.normal,
+            contact_offset=limb.offset,
+            reference=reference,
+            posture_weight=params.posture_weight,
+            data=data,
+        )
+    dofs = limb_dofs(model, limb.root_joint, limb.effector_frame)
+    weights = np.zeros(model.nv)
+    weights[dofs] = params.posture_weight
+    tasks: list[Task] = [
+        FramePositionTask(limb.frame_id, target, limb.offset, Priority.CONTACT),
+        PostureTask(reference, weights, gain=0.3),
+    ]
+    return solve_ik(model, q, tasks, data=data, active=dofs)
 
 
 def _contact_points(limb: Limb, placement: FloatArray) -> FloatArray:
@@ -171,24 +230,27 @@ def _contact_points(limb: Limb, placement: FloatArray) -> FloatArray:
 
 def contact_on_surface(contact: LimbContact, surface: Surface, limb: Limb) -> bool:
     """Contact points within ``CONTACT_TOLERANCE`` of the surface plane and inside it, and the
-    effector contact normal within ``NORMAL_TOLERANCE`` of the surface normal."""
+    effector contact normal within ``NORMAL_TOLERANCE`` of the surface normal (patches only:
+    a point contact has no orientation)."""
     heights = np.abs(surface.height(contact.points))
     if float(heights.max()) > CONTACT_TOLERANCE:
         return False
     if not bool(np.all(surface.contains_projection(contact.points))):
         return False
+    if limb.contact == "point":
+        return True
     axis = contact.placement[:3, :3] @ limb.normal
     cos = float(np.clip(axis @ surface.normal / np.linalg.norm(axis), -1.0, 1.0))
     return math.acos(cos) <= NORMAL_TOLERANCE
 
 
-def _equilibrium(character: Character, q: FloatArray, contacts: Sequence[LimbContact],
-                 params: StandingParams) -> tuple[bool, float, FloatArray]:
+def _equilibrium(
+    character: Character, q: FloatArray, contacts: Sequence[LimbContact], params: StandingParams
+) -> tuple[bool, float, FloatArray]:
     """(balanced with the margin, margin in N, COM (3,))."""
     model = character.model
-    com = np.array(pin.centerOfMass(model, model.createData(), q), dtype=np.float64)
-    phase = ContactPhase([Contact(c.points, c.normal, c.mu) for c in contacts],
-                         mass=character.mass)
+    com = np.array(pin.centerOfMass(model, scratch_data(model), q), dtype=np.float64)
+    phase = ContactPhase([Contact(c.points, c.normal, c.mu) for c in contacts], mass=character.mass)
     result = equilibrium_margin(phase, com)
     generators = phase.wrench_generators.shape[0]
     needed = params.margin * character.mass * GRAVITY / max(generators, 1)
@@ -234,11 +296,7 @@ def state_from_root_pose(
         if below is None:
             return _fail(f"no Support surface under {name}")
         surface, target = below
-        ik = project_contact(
-            model, q, limb.root_joint, limb.effector_frame, target, surface.normal,
-            contact_normal=limb.normal, contact_offset=limb.offset, reference=reference,
-            posture_weight=params.posture_weight, data=pin_data,
-        )
+        ik = _project(model, limb, q, target, surface.normal, reference, params, pin_data)
         if not ik.success:
             return _fail(f"IK cannot put {name} on surface {surface.id}")
         q = np.array(ik.q, dtype=np.float64)
@@ -249,8 +307,14 @@ def state_from_root_pose(
     contacts = []
     for limb, surface in chosen:
         placement = np.array(pin_data.oMf[limb.frame_id].homogeneous, dtype=np.float64)
-        contact = LimbContact(limb.name, placement, _contact_points(limb, placement),
-                              surface.normal, limb.mu, surface.id)
+        contact = LimbContact(
+            limb.name,
+            placement,
+            _contact_points(limb, placement),
+            surface.normal,
+            limb.mu,
+            surface.id,
+        )
         if not contact_on_surface(contact, surface, limb):
             return _fail(f"{limb.name} is not fully on surface {surface.id}")
         contacts.append(contact)
@@ -259,11 +323,51 @@ def state_from_root_pose(
     if self_collides(character, q):
         return _fail("the body collides with itself")
     balanced, margin, com = _equilibrium(character, q, contacts, params)
-    stats: dict[str, float | int | str] = {"margin": margin, "com_x": float(com[0]),
-                                           "com_y": float(com[1]), "com_z": float(com[2])}
+    stats: dict[str, float | int | str] = {
+        "margin": margin,
+        "com_x": float(com[0]),
+        "com_y": float(com[1]),
+        "com_z": float(com[2]),
+    }
     if not balanced:
         return PlanResult(PlanStatus.INFEASIBLE, None, stats, "not balanced with the margin")
     return PlanResult(PlanStatus.SOLVED, ContactState(q, tuple(contacts)), stats)
+
+
+def _trunk_points(character: Character) -> FloatArray:
+    """(k, 3) points of the trunk shapes in the root frame (box corners, capsule ends)."""
+    points = []
+    for shape in character.trunk:
+        if isinstance(shape, Box):
+            points.append(shape.vertices())
+        else:
+            ends = np.array([[0.0, 0.0, -shape.half_length], [0.0, 0.0, shape.half_length]])
+            local = ends @ shape.offset[:3, :3].T + shape.offset[:3, 3]
+            lift = np.array([0.0, 0.0, shape.radius])
+            points.append(np.vstack([local + lift, local - lift]))
+    return np.asarray(np.vstack(points), dtype=np.float64)
+
+
+def _trunk_clearance_level(
+    scene: Scene,
+    character: Character,
+    root: FloatArray,
+    rotation: FloatArray,
+    height: float,
+    params: StandingParams,
+) -> float | None:
+    """Root height (m) putting the trunk 1 cm above the highest Support surface under it (near
+    ``height``), or None when there is none."""
+    points = _trunk_points(character)
+    tops = []
+    for point in points @ rotation.T + root:
+        probe = np.array([point[0], point[1], height])
+        below = _support_below(scene, probe, params.search_height)
+        if below is not None:
+            tops.append(float(below[1][2]))
+    if not tops:
+        return None
+    return max(tops) + 0.01 - float(points[:, 2].min())
 
 
 def _fail(message: str) -> PlanResult[ContactState]:
@@ -284,13 +388,14 @@ def standing_state(
 ) -> PlanResult[ContactState]:
     """A balanced standing state at ``point`` (3,), a point of a Support surface (world, m).
 
-    The root is placed so the ground limbs' reference contacts are centred on the point (root
-    yaw ``yaw`` rad, or drawn from ``rng``; after the first attempt the root is also shifted
-    sideways at random), at the reference height above the lowest Support surface found below
-    them; a first result that is not balanced is retried with the root moved by the COM's
-    offset from the support centre. SOLVED with the state; INFEASIBLE when no Support surface
-    is at the point or ``params.attempts`` root poses all fail (message: the last reason);
-    TIMEOUT when ``until`` fires first.
+    The root is placed so the ground limbs' reference contacts are centred on the point, with
+    yaw ``yaw`` (rad) or else 16 yaws 22.5 degrees apart from one drawn from ``rng``; further
+    attempts also shift the root sideways at random (``params.jitter``). Root heights tried,
+    low to high: the reference height above the lowest, mean and highest Support surface
+    found below the contacts, and the height at which the trunk clears the Support surfaces
+    under it. SOLVED with the state; INFEASIBLE when no Support surface is at the point or
+    ``params.attempts`` root poses all fail (message: the last reason); TIMEOUT when ``until``
+    fires first.
     """
     params = StandingParams() if params is None else params
     p = np.asarray(point, dtype=np.float64).reshape(3)
@@ -302,13 +407,18 @@ def standing_state(
     local = np.stack([checker.offsets[name] for name in names])
     centre = local.mean(axis=0)
     message = "no attempt made"
+    base = float(rng.uniform(-np.pi, np.pi))
     for attempt in range(params.attempts):
         if until():
             return PlanResult(PlanStatus.TIMEOUT, None, {"attempts": attempt}, "deadline")
-        heading = float(rng.uniform(-np.pi, np.pi)) if yaw is None else float(yaw)
+        if yaw is None:  # headings spread over the circle, then again with sideways shifts
+            heading = base + (attempt % _HEADINGS) * 2.0 * np.pi / _HEADINGS
+            shifted = attempt >= _HEADINGS
+        else:
+            heading, shifted = float(yaw), attempt > 0
         rotation = yaw_matrix(np.array(heading))
         shift = np.zeros(3)
-        if attempt > 0:
+        if shifted:
             shift[:2] = rng.normal(0.0, params.jitter, size=2)
         root = p + shift - rotation @ centre
         heights = []
@@ -321,18 +431,23 @@ def standing_state(
         if len(heights) < len(names):
             message = "a foot has no Support surface below it"
             continue
-        root[2] = min(heights) - centre[2]
-        result = state_from_root_pose(scene, character, data, pose_matrix(root, rotation),
-                                      limbs=names, checker=checker, params=params)
-        if result.status is PlanStatus.INFEASIBLE and "com_x" in result.stats:
-            support = np.mean([c.points.mean(axis=0) for c in _last_contacts(result)], axis=0) \
-                if False else None
-            del support
-            offset = np.array([float(result.stats["com_x"]), float(result.stats["com_y"])])
-            foot_centre = (rotation @ centre + root)[:2]
-            root[:2] -= offset - foot_centre
-            result = state_from_root_pose(scene, character, data, pose_matrix(root, rotation),
-                                          limbs=names, checker=checker, params=params)
+        levels = {min(heights), float(np.mean(heights)), max(heights)}
+        clear = _trunk_clearance_level(scene, character, root, rotation, p[2], params)
+        if clear is not None and clear + centre[2] > max(heights):
+            levels.add(clear + centre[2])
+        for level in sorted(levels):
+            root[2] = level - centre[2]
+            result = state_from_root_pose(
+                scene,
+                character,
+                data,
+                pose_matrix(root, rotation),
+                limbs=names,
+                checker=checker,
+                params=params,
+            )
+            if result.status is PlanStatus.SOLVED:
+                break
         if result.status is PlanStatus.SOLVED:
             stats = dict(result.stats)
             stats["attempts"] = attempt + 1
@@ -340,7 +455,3 @@ def standing_state(
             return PlanResult(PlanStatus.SOLVED, result.value, stats)
         message = result.message
     return PlanResult(PlanStatus.INFEASIBLE, None, {"attempts": params.attempts}, message)
-
-
-def _last_contacts(result: PlanResult[ContactState]) -> tuple[LimbContact, ...]:
-    return () if result.value is None else result.value.contacts

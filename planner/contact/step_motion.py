@@ -8,6 +8,7 @@ retry with a higher swing arc (local collision handling within a small budget).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -17,21 +18,25 @@ from numpy.typing import NDArray
 from planner.contact.checks import (
     com_of,
     effector_pose,
+    hold_error,
     kinematics_of,
     phase_of,
     scene_collisions,
     self_collides,
 )
 from planner.contact.context import ContactContext
-from planner.contact.generation import hold_tasks
+from planner.contact.generation import hold_tasks, posture_task
 from planner.contact.state import ContactState
-from planner.kinematics import swing_trajectory, track_com
+from planner.kinematics import ComTask, keyframe_times, solve_ik, swing_trajectory, track_com
 from planner.motion import ComSegment, Keyframe, Phase
 from trajectory import plan_com_trajectory
 
 FloatArray = NDArray[np.float64]
 
 _LIFTS = (0.08, 0.18)  # m, swing arc heights tried in turn
+_MIN_SWING = 0.4  # s, shortest swing
+_FULL_CHECK_STRIDE = 3  # whole-body collision check every this many keyframes
+_REPAIR_TOL = 2e-3  # m, keyframes whose stance slips more are re-solved
 
 
 @dataclass(frozen=True, slots=True)
@@ -62,23 +67,41 @@ def step_motion(
     kin_b, kin_a = kinematics_of(ctx, before.contacts), kinematics_of(ctx, after.contacts)
     c0, c1 = com_of(ctx, before.q), com_of(ctx, after.q)
     traj = plan_com_trajectory(
-        [phase_b, phase_a], c0, c1, kinematics=[kin_b, kin_a], n_checks=3, min_window=0.6
+        [phase_b, phase_a], c0, c1, kinematics=[kin_b, kin_a], n_checks=3, min_window=0.5
     )
-    times = np.asarray(traj.phase_times, dtype=np.float64)
+    times = np.asarray(traj.phase_times, dtype=np.float64).copy()
     curve = traj.curve
-    t_end = float(curve.t1)
+    creating = after.contact(limb) is not None
+    segments = [ComSegment(seg.t0, seg.t1, np.array(seg.control_points)) for seg in traj.segments]
+    # the swing needs time: pad its phase with the COM at rest when 2PAC gave it none
+    pad = max(0.0, _MIN_SWING - float(times[1] - times[0] if creating else times[2] - times[1]))
+    if pad > 0.0 and creating:
+        segments = [ComSegment(0.0, pad, np.stack([c0, c0]))] + [
+            ComSegment(g.t0 + pad, g.t1 + pad, g.control_points) for g in segments
+        ]
+        times[1:] += pad
+    elif pad > 0.0:
+        end = segments[-1].t1
+        segments.append(ComSegment(end, end + pad, np.stack([c1, c1])))
+        times[2] += pad
+    offset = pad if creating else 0.0
+    t_first, t_last = float(curve.t0), float(curve.t1)
+
+    def com_samples(ts: FloatArray) -> FloatArray:
+        tt = np.clip(ts - offset, t_first, t_last)
+        return np.asarray(curve(tt), dtype=np.float64)
 
     def com_at(t: float) -> FloatArray:
-        tt = min(max(t, float(curve.t0)), t_end)
-        return np.asarray(curve(np.array([tt]))[0], dtype=np.float64)
+        out: FloatArray = com_samples(np.array([t]))[0]
+        return out
 
-    creating = after.contact(limb) is not None
     spec = ctx.character.limb(limb)
     start_pose = effector_pose(ctx, limb, before.q)
     end_pose = effector_pose(ctx, limb, after.q)
     swing_phase = 0 if creating else 1
+    spec_geoms = limb_geometries(ctx, limb)
     stances = (before.contacts, after.contacts)
-    best: tuple[list[FloatArray], list[float], float, int] | None = None
+    best: tuple[list[FloatArray], list[float], float, int, float] | None = None
     for lift in _LIFTS:
         qs: list[FloatArray] = []
         ts: list[float] = []
@@ -88,51 +111,48 @@ def step_motion(
             t0, t1 = float(times[j]), float(times[j + 1])
             if t1 - t0 < 1e-9:
                 continue
-            swing = None
+            swing: Callable[[float], FloatArray] | None = None
             frame = None
             if j == swing_phase:
                 arc = swing_trajectory(
                     start_pose, end_pose, t0, t1, lift=lift, normal_in_frame=spec.normal
                 )
-                if spec.contact == "point":
-
-                    def swing(t: float, arc: Any = arc) -> FloatArray:
-                        return np.asarray(arc(t)[:3, 3], dtype=np.float64)
-
-                else:
-                    swing = arc
+                swing = _positions(arc) if spec.contact == "point" else arc
                 frame = spec.frame_id
+            kf_times = keyframe_times(t0, t1, rate)
             track = track_com(
                 ctx.model,
                 q,
-                com_at,
+                (kf_times, com_samples(kf_times)),
                 stance=hold_tasks(stances[j], ctx),
                 swing_frame=frame,
                 swing=swing,
                 reference=after.q,
-                t_start=t0,
-                t_end=t1,
                 rate=rate,
                 data=ctx.pin_data,
-                max_iterations=20,
+                max_iterations=12,
             )
-            start = 0 if not ts else 1
-            qs.extend(np.array(c) for c in track.configurations[start:])
-            ts.extend(float(t) for t in track.times[start:])
-            if len(track.contact_errors):
-                worst_hold = max(worst_hold, float(np.max(track.contact_errors)))
-            q = np.array(track.configurations[-1])
+            if ts:  # the boundary keyframe belongs to the later phase
+                qs.pop()
+                ts.pop()
+            configs = [np.array(c) for c in track.configurations]
+            stance = stances[j]
+            for i in np.flatnonzero(track.contact_errors > _REPAIR_TOL).tolist():
+                configs[i] = _repair(ctx, configs[i], stance, com_at(float(track.times[i])))
+            qs.extend(configs)
+            ts.extend(float(t) for t in track.times)
+            for qq in configs:
+                worst_hold = max(worst_hold, hold_error(ctx, qq, stance))
+            q = np.array(configs[-1])
         qs[0] = np.array(before.q)
         qs[-1] = np.array(after.q)
-        hits = sum(
-            1 for qq in qs[1:-1] if scene_collisions(ctx, qq) or self_collides(ctx, qq)
-        )
+        hits = _colliding(ctx, qs, spec_geoms)
         if best is None or hits < best[3]:
-            best = (qs, ts, worst_hold, hits)
+            best = (qs, ts, worst_hold, hits, lift)
         if hits == 0:
             break
     assert best is not None
-    qs, ts, worst_hold, hits = best
+    qs, ts, worst_hold, hits, lift = best
     keyframes = tuple(
         Keyframe(t, qq, tuple(c.limb for c in _stance_at(t, times, stances)))
         for t, qq in zip(ts, qs, strict=True)
@@ -141,7 +161,7 @@ def step_motion(
         Phase(float(times[0]), float(times[1]), before.contacts),
         Phase(float(times[1]), float(times[2]), after.contacts),
     )
-    com = tuple(ComSegment(s.t0, s.t1, np.array(s.control_points)) for s in traj.segments)
+    com = tuple(segments)
     report: dict[str, Any] = {
         "phases": [
             {
@@ -157,9 +177,47 @@ def step_motion(
         "quasi_static_feasible": bool(traj.quasi_static_feasible),
         "max_hold_error": worst_hold,
         "colliding_keyframes": hits,
-        "collisions_fixed": 0 if hits else int(best is not None and len(_LIFTS) > 0) * 0,
+        "swing_lift": float(lift),
     }
     return StepMotion(phases, com, keyframes, report)
+
+
+def limb_geometries(ctx: ContactContext, limb: str) -> NDArray[np.int64]:
+    """Indices of the collision geometries carried by ``limb``'s joints."""
+    joints = set(ctx.character.limb(limb).joint_ids.tolist())
+    geoms = ctx.character.geometry.geometryObjects
+    return np.array(
+        [i for i, g in enumerate(geoms) if int(g.parentJoint) in joints], dtype=np.int64
+    )
+
+
+def _colliding(ctx: ContactContext, qs: list[FloatArray], swing: NDArray[np.int64]) -> int:
+    """Keyframes (interior) with a collision: the swing limb's shapes at every keyframe,
+    the whole body (scene and self) every ``_FULL_CHECK_STRIDE`` keyframes."""
+    hits = 0
+    for i, q in enumerate(qs[1:-1], start=1):
+        if i % _FULL_CHECK_STRIDE == 0:
+            hit = bool(scene_collisions(ctx, q)) or self_collides(ctx, q)
+        else:
+            hit = bool(scene_collisions(ctx, q, swing))
+        hits += int(hit)
+    return hits
+
+
+def _repair(ctx: ContactContext, q: FloatArray, stance: Any, com: FloatArray) -> FloatArray:
+    """Re-solve one keyframe whose stance contacts slipped, with a larger iteration budget."""
+    tasks = [*hold_tasks(stance, ctx), ComTask(com), posture_task(ctx)]
+    result = solve_ik(ctx.model, q, tasks, data=ctx.pin_data, max_iterations=100)
+    if hold_error(ctx, result.q, stance) < hold_error(ctx, q, stance):
+        return np.array(result.q)
+    return q
+
+
+def _positions(arc: Callable[[float], FloatArray]) -> Callable[[float], FloatArray]:
+    def position(t: float) -> FloatArray:
+        return np.asarray(arc(t)[:3, 3], dtype=np.float64)
+
+    return position
 
 
 def _stance_at(t: float, times: FloatArray, stances: tuple[Any, Any]) -> Any:

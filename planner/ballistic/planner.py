@@ -1,0 +1,589 @@
+"""Ballistic jump planning on a real scene: the domain API behind ``/v1/roadmaps`` and
+``/v1/jumps``.
+
+``plan_jumps`` turns a start and a goal (root poses or ``stand_at`` points) into a sequence of
+parabolic jumps with whole-body keyframes: reduced model (``nodes``), roadmap (given, loaded
+from a ``RoadmapStore`` or built within the termination budget), query, then keyframes
+(``keyframes``). ``RoadmapStore`` builds, persists (atomically) and reloads roadmaps by id.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.ballistic.cones import centroidal_cones
+from planner.ballistic.keyframes import JumpAnimator, LimbCollider, Stance
+from planner.ballistic.nodes import ReducedModel, SceneSampler
+from planner.ballistic.roadmap import (
+    GOAL,
+    START,
+    JumpPath,
+    Roadmap,
+    RoadmapNodes,
+    RoadmapParams,
+    build_roadmap,
+)
+from planner.ballistic.steering import jump_at
+from planner.character import Character
+from planner.motion import Keyframe
+from planner.offline import OfflineData
+from planner.result import PlanResult, PlanStatus
+from planner.scene import Scene
+from planner.termination import Deadline, Termination, any_of, never
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+
+def _ro(value: object) -> FloatArray:
+    out = np.array(value, dtype=np.float64)
+    out.flags.writeable = False
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Parameters and results
+
+
+@dataclass(frozen=True, slots=True)
+class JumpParams:
+    """Jump planning parameters.
+
+    roadmap : steering, connection and collision parameters (its ``scene_key`` is filled in
+    by the planner). n_nodes : roadmap size when one is built. min_limbs : contacts a node needs
+    (None: half the limbs, rounded up). lean : Lean surfaces count as contact surfaces. mu :
+    friction of every contact (None: the limbs' own). rate : keyframes per second.
+    phase_fraction : longest contact phase as a fraction of the flight. stand_radius : m, how
+    far from a ``stand_at`` point its surface point may be. roadmap_seed : seed of roadmaps
+    built through a ``RoadmapStore`` by ``plan_jumps``. limb_collisions : check the limbs of
+    flight keyframes against the scene and re-sample colliding ones. build_share : when
+    ``plan_jumps`` builds a roadmap under a ``Deadline``, the build gets this share of the
+    time left (the query and keyframes the rest).
+    """
+
+    roadmap: RoadmapParams = field(
+        default_factory=lambda: RoadmapParams(v0max=6.0, vimpmax=8.0, max_gap=0.1, lazy=True)
+    )
+    n_nodes: int = 300
+    min_limbs: int | None = None
+    lean: bool = False
+    mu: float | None = None
+    rate: float = 30.0
+    phase_fraction: float = 1.0 / 3.0
+    stand_radius: float = 0.5
+    roadmap_seed: int = 0
+    limb_collisions: bool = True
+    build_share: float = 0.7
+
+    def __post_init__(self) -> None:
+        if self.n_nodes < 1 or not self.rate > 0 or not 0.0 < self.phase_fraction <= 0.5:
+            raise ValueError("n_nodes >= 1, rate > 0 and phase_fraction in (0, 0.5] required")
+        if self.min_limbs is not None and self.min_limbs < 1:
+            raise ValueError("min_limbs must be >= 1")
+        if self.mu is not None and not self.mu > 0:
+            raise ValueError("mu must be positive")
+        if not 0.0 < self.build_share <= 1.0:
+            raise ValueError("build_share must be in (0, 1]")
+
+    def limbs_needed(self, character: Character) -> int:
+        """The number of contacts a node needs for ``character``."""
+        if self.min_limbs is not None:
+            return min(self.min_limbs, len(character.limbs))
+        return (len(character.limbs) + 1) // 2
+
+    def model_key(self, scene: Scene, character: Character, data: OfflineData) -> str:
+        """Identifies the reduced model: scene content, character data, sampler settings."""
+        return json.dumps(
+            {
+                "scene": scene.content_hash,
+                "character": character.id,
+                "data": data.cache_key,
+                "min_limbs": self.limbs_needed(character),
+                "lean": self.lean,
+                "mu": self.mu,
+            },
+            sort_keys=True,
+        )
+
+    def roadmap_params(
+        self, scene: Scene, character: Character, data: OfflineData
+    ) -> RoadmapParams:
+        """``roadmap`` with its ``scene_key`` set for this scene and character."""
+        key = hashlib.sha256(self.model_key(scene, character, data).encode()).hexdigest()[:32]
+        return replace(self.roadmap, scene_key=key)
+
+
+@dataclass(frozen=True, slots=True)
+class JumpContact:
+    """One contact: limb name, point (3,) m and unit surface normal (3,) (world), mu."""
+
+    limb: str
+    point: FloatArray
+    normal: FloatArray
+    mu: float
+
+
+@dataclass(frozen=True, slots=True)
+class JumpEnd:
+    """Takeoff or landing: root position (3,) m, root velocity (3,) m/s, the contacts held
+    there, and the node's centroidal cone (axis (3,), mu) the velocity was checked against
+    (V0 inside it at takeoff, -Vimp at landing)."""
+
+    position: FloatArray
+    velocity: FloatArray
+    contacts: tuple[JumpContact, ...]
+    cone_axis: FloatArray
+    cone_mu: float
+
+
+@dataclass(frozen=True, slots=True)
+class JumpInfo:
+    """One jump: takeoff, landing, apex (3,) m, flight duration (s), and its absolute times
+    (s from the motion's start): start, contact break, apex, contact creation.
+    limb_collisions : flight keyframes where a limb still touches the scene after re-sampling."""
+
+    takeoff: JumpEnd
+    landing: JumpEnd
+    apex: FloatArray
+    duration: float
+    t_start: float
+    contact_break: float
+    apex_time: float
+    contact_create: float
+    limb_collisions: int = 0
+
+
+@dataclass(frozen=True, slots=True)
+class JumpPlan:
+    """The answer of ``plan_jumps``.
+
+    jumps : the jumps in order. keyframes : whole-body keyframes, absolute times, strictly
+    increasing. timings : seconds per stage (model, roadmap, endpoints, query, keyframes,
+    total). path : the roadmap path (node ids, START = -1, GOAL = -2). roadmap : the roadmap used.
+    """
+
+    jumps: tuple[JumpInfo, ...]
+    keyframes: tuple[Keyframe, ...]
+    timings: dict[str, float]
+    path: JumpPath
+    roadmap: Roadmap
+
+
+# --------------------------------------------------------------------------------------------
+# End points
+
+
+def _as_node(
+    model: ReducedModel,
+    spec: FloatArray,
+    min_limbs: int,
+    radius: float,
+    rng: np.random.Generator,
+    toward: FloatArray | None,
+) -> RoadmapNodes | None:
+    """A node for a root pose (4, 4) or a ``stand_at`` point (3,); None if none is valid."""
+    value = np.asarray(spec, dtype=np.float64)
+    if value.shape == (4, 4):
+        nodes, _ = model.nodes(value[None], min_limbs)
+        return nodes if len(nodes) else None
+    if value.shape != (3,) or not np.all(np.isfinite(value)):
+        raise ValueError("start and goal must be (4, 4) root poses or (3,) stand_at points")
+    # Surface points near the request, nearest first.
+    found: list[tuple[float, FloatArray, FloatArray]] = []
+    for surface in model.surfaces:
+        point = surface.closest_point(value[None])[0]
+        gap = float(np.linalg.norm(point - value))
+        if gap <= radius:
+            found.append((gap, point, surface.normal))
+    found.sort(key=lambda item: item[0])
+    stance = model.reference_points[model.stance].mean(axis=0)
+    yaws = rng.uniform(-np.pi, np.pi, size=15)
+    if toward is not None and np.hypot(*(toward - value)[:2]) > 1e-6:
+        yaws = np.concatenate([[np.arctan2(*(toward - value)[1::-1])], yaws])
+    for _, point, normal in found:
+        for lift in (0.0, 0.03, 0.08):
+            for begin in range(0, len(yaws), 4):  # small batches: the first usually succeeds
+                batch = yaws[begin : begin + 4]
+                m = len(batch)
+                poses = _place(
+                    model, np.tile(point, (m, 1)), np.tile(normal, (m, 1)), batch, stance
+                )
+                poses[:, :3, 3] += lift * normal
+                nodes, _ = model.nodes(poses, min_limbs)
+                if len(nodes):
+                    return nodes.take(slice(0, 1))
+    return None
+
+
+def _place(
+    model: ReducedModel, points: FloatArray, normals: FloatArray, yaw: FloatArray, ref: FloatArray
+) -> FloatArray:
+    """Like ``ReducedModel.place`` with a fixed root-frame reference point ``ref`` (3,)."""
+    poses = model.place(points, normals, yaw, np.zeros(len(points), np.int64))
+    offset = model.reference_points[0] - ref
+    poses[:, :3, 3] += np.einsum("nij,j->ni", poses[:, :3, :3], offset)
+    return poses
+
+
+# --------------------------------------------------------------------------------------------
+# Planning
+
+
+def _node_row(nodes: RoadmapNodes, i: int) -> dict[str, Any]:
+    return {key: value[i] for key, value in nodes.contacts.items()}
+
+
+def plan_jumps(
+    scene: Scene,
+    character: Character,
+    data: OfflineData,
+    start: FloatArray,
+    goal: FloatArray,
+    *,
+    rng: np.random.Generator,
+    roadmap: Roadmap | None = None,
+    params: JumpParams | None = None,
+    until: Termination = never,
+    store_dir: str | Path | None = None,
+) -> PlanResult[JumpPlan]:
+    """Jumps from ``start`` to ``goal`` (each a (4, 4) root pose or a (3,) ``stand_at`` point).
+
+    Without ``roadmap``: with ``store_dir`` the store's roadmap for these inputs (seed
+    ``params.roadmap_seed``) is loaded or built and saved; otherwise one of ``params.n_nodes``
+    nodes is built with ``rng`` within ``until``. A given roadmap must have been built for this
+    scene, character and parameters (ValueError otherwise). Statuses: SOLVED; INVALID_START /
+    INVALID_GOAL (no valid node there, or no jump leaves / reaches it); INFEASIBLE (not
+    connected); TIMEOUT (``until`` fired before the query ended).
+    """
+    params = JumpParams() if params is None else params
+    clock = time.perf_counter()
+    timings: dict[str, float] = {}
+    rparams = params.roadmap_params(scene, character, data)
+    min_limbs = params.limbs_needed(character)
+    model = ReducedModel.build(
+        scene, character, data, lean=params.lean, mu=params.mu, margin=rparams.max_gap / 2
+    )
+    timings["model"] = time.perf_counter() - clock
+    mark = time.perf_counter()
+    s_spec = np.asarray(start, dtype=np.float64)
+    g_spec = np.asarray(goal, dtype=np.float64)
+    start_node = _as_node(model, s_spec, min_limbs, params.stand_radius, rng, _point(g_spec))
+    goal_node = _as_node(model, g_spec, min_limbs, params.stand_radius, rng, _point(s_spec))
+    timings["endpoints"] = time.perf_counter() - mark
+    if start_node is None:
+        return PlanResult(PlanStatus.INVALID_START, None, dict(timings), "no valid node at start")
+    if goal_node is None:
+        return PlanResult(PlanStatus.INVALID_GOAL, None, dict(timings), "no valid node at goal")
+
+    mark = time.perf_counter()
+    stats: dict[str, float | int | str] = {}
+    if roadmap is None and store_dir is not None:
+        store = RoadmapStore(store_dir)
+        rid = store.build(scene, character, data, params, params.n_nodes, params.roadmap_seed)
+        roadmap = store.load(rid)
+    elif roadmap is None:
+        # Leave a share of a deadline to the query and the keyframes.
+        build_until = (
+            any_of(until, Deadline(params.build_share * until.remaining()))
+            if isinstance(until, Deadline)
+            else until
+        )
+        built = build_roadmap(
+            SceneSampler(model, min_limbs),
+            params.n_nodes,
+            rparams,
+            rng=rng,
+            collides_many=model.collider,
+            until=build_until,
+        )
+        if built.value is None:
+            return PlanResult(built.status, None, dict(timings), built.message)
+        roadmap = built.value
+    elif roadmap.params.digest() != rparams.digest():
+        raise ValueError("the roadmap was built for another scene, character or parameters")
+    timings["roadmap"] = time.perf_counter() - mark
+    stats.update({f"roadmap_{k}": v for k, v in roadmap.stats.items() if k in ("nodes", "edges")})
+
+    mark = time.perf_counter()
+    found = roadmap.query(start_node, goal_node, collides_many=model.collider, until=until)
+    timings["query"] = time.perf_counter() - mark
+    if found.value is None:
+        timings["total"] = time.perf_counter() - clock
+        stats.update(found.stats)
+        stats.update(timings)
+        return PlanResult(found.status, None, stats, found.message)
+    path = found.value
+
+    mark = time.perf_counter()
+    jumps, frames = _synthesise(model, data, params, roadmap, path, start_node, goal_node)
+    timings["keyframes"] = time.perf_counter() - mark
+    timings["total"] = time.perf_counter() - clock
+    plan = JumpPlan(jumps, frames, dict(timings), path, roadmap)
+    stats.update(found.stats)
+    stats.update(timings)
+    return PlanResult(PlanStatus.SOLVED, plan, stats)
+
+
+def _point(spec: FloatArray) -> FloatArray:
+    return np.asarray(spec[:3, 3] if spec.shape == (4, 4) else spec, dtype=np.float64)
+
+
+def _synthesise(
+    model: ReducedModel,
+    data: OfflineData,
+    params: JumpParams,
+    roadmap: Roadmap,
+    path: JumpPath,
+    start: RoadmapNodes,
+    goal: RoadmapNodes,
+) -> tuple[tuple[JumpInfo, ...], tuple[Keyframe, ...]]:
+    """Jump descriptions and keyframes along a roadmap path."""
+    char = model.character
+    animator = JumpAnimator(
+        char,
+        data,
+        rate=params.rate,
+        phase_fraction=params.phase_fraction,
+        limbs=LimbCollider(char, model.scene) if params.limb_collisions else None,
+    )
+    rows: list[dict[str, Any]] = []
+    for label in path.nodes:
+        if label == START:
+            rows.append(_node_row(start, 0))
+        elif label == GOAL:
+            rows.append(_node_row(goal, 0))
+        else:
+            rows.append(_node_row(roadmap.nodes, int(label)))
+    by_id = {surface.id: surface for surface in model.surfaces}
+    stances: list[Stance] = [
+        animator.stance(
+            path.positions[i],
+            path.orientations[i],
+            row["active"],
+            row["points"],
+            row["normals"],
+            [by_id.get(int(sid)) for sid in row["surfaces"]],
+        )
+        for i, row in enumerate(rows)
+    ]
+    jumps: list[JumpInfo] = []
+    frames: list[Keyframe] = []
+    t0 = 0.0
+    for i in range(len(path)):
+        jump = jump_at(path.positions[i], path.positions[i + 1], float(path.t[i]), path.g)
+        out = animator.animate(
+            jump,
+            path.orientations[i],
+            path.orientations[i + 1],
+            stances[i],
+            stances[i + 1],
+            t0,
+        )
+        new = out.frames if not frames else out.frames[1:]  # shared stance frame
+        frames.extend(new)
+        takeoff = _end(model, rows[i], stances[i], jump.p0, jump.v0)
+        landing = _end(model, rows[i + 1], stances[i + 1], jump.p1, jump.vimp)
+        jumps.append(
+            JumpInfo(
+                takeoff,
+                landing,
+                _ro(jump.apex),
+                jump.duration,
+                t0,
+                out.contact_break,
+                out.apex_time,
+                out.contact_create,
+                out.limb_collisions,
+            )
+        )
+        t0 += jump.duration
+    if not frames:  # zero jumps: one frame at the start
+        frames.append(Keyframe(0.0, np.array(stances[0].q), _names(char, stances[0])))
+    return tuple(jumps), tuple(frames)
+
+
+def _names(character: Character, stance: Stance) -> tuple[str, ...]:
+    return tuple(character.limbs[k].name for k in np.flatnonzero(stance.achieved))
+
+
+def _end(
+    model: ReducedModel,
+    row: dict[str, Any],
+    stance: Stance,
+    position: FloatArray,
+    velocity: FloatArray,
+) -> JumpEnd:
+    """Takeoff or landing description: the contacts the stance achieved; the cone of the node
+    (recomputed from the achieved contacts when some could not be made)."""
+    char = model.character
+    achieved = stance.achieved & np.asarray(row["active"], dtype=bool)
+    contacts = tuple(
+        JumpContact(
+            char.limbs[k].name,
+            _ro(stance.points[k]),
+            _ro(row["normals"][k]),
+            float(row["mus"][k]),
+        )
+        for k in np.flatnonzero(achieved)
+    )
+    mask = achieved if achieved.any() else np.asarray(row["active"], dtype=bool)
+    axes, mus, _ = centroidal_cones(row["normals"][None], row["mus"][None], mask[None])
+    return JumpEnd(_ro(position), _ro(velocity), contacts, _ro(axes[0]), float(mus[0]))
+
+
+# --------------------------------------------------------------------------------------------
+# Roadmap store
+
+
+class RoadmapStore:
+    """Roadmaps on disk, by id: ``<id>.npz`` (``Roadmap.save``) and ``<id>.json`` (info).
+
+    The id hashes the scene content, the character's offline data key, the parameters, the
+    node count and the seed, so equal requests share a roadmap. Files are written to a
+    temporary name and renamed, so a finished roadmap survives a restart and a crash never
+    leaves a truncated one.
+    """
+
+    def __init__(self, directory: str | Path) -> None:
+        self.directory = Path(directory)
+
+    @staticmethod
+    def roadmap_id(
+        scene: Scene,
+        character: Character,
+        data: OfflineData,
+        params: JumpParams,
+        n_nodes: int,
+        seed: int,
+    ) -> str:
+        """24 hex digits identifying the roadmap these inputs build."""
+        text = json.dumps(
+            {
+                "model": params.model_key(scene, character, data),
+                "roadmap": params.roadmap.to_json(),
+                "n_nodes": int(n_nodes),
+                "seed": int(seed),
+            },
+            sort_keys=True,
+        )
+        return hashlib.sha256(text.encode()).hexdigest()[:24]
+
+    def path(self, roadmap_id: str) -> Path:
+        """The .npz file of a roadmap id."""
+        if not roadmap_id.isalnum():
+            raise ValueError("invalid roadmap id")
+        return self.directory / f"{roadmap_id}.npz"
+
+    def exists(self, roadmap_id: str) -> bool:
+        """True when the roadmap is finished and stored."""
+        return self.path(roadmap_id).is_file()
+
+    def info(self, roadmap_id: str) -> dict[str, Any] | None:
+        """{"status": "ready", "nodes", "edges", "bytes", "build_seconds", ...} or None."""
+        if not self.exists(roadmap_id):
+            return None
+        meta = self.path(roadmap_id).with_suffix(".json")
+        out: dict[str, Any] = json.loads(meta.read_text()) if meta.is_file() else {}
+        out["status"] = "ready"
+        out["bytes"] = self.path(roadmap_id).stat().st_size
+        return out
+
+    def load(self, roadmap_id: str) -> Roadmap:
+        """The stored roadmap; FileNotFoundError if absent."""
+        return Roadmap.load(self.path(roadmap_id))
+
+    def save(self, roadmap_id: str, roadmap: Roadmap, meta: dict[str, Any]) -> None:
+        """Store a roadmap atomically (the .json first, then the .npz that marks it ready)."""
+        self.directory.mkdir(parents=True, exist_ok=True)
+        _atomic_write(
+            self.directory, self.path(roadmap_id).with_suffix(".json"), json.dumps(meta).encode()
+        )
+        fd, tmp = tempfile.mkstemp(dir=self.directory, suffix=".npz.tmp")
+        os.close(fd)
+        try:
+            roadmap.save(tmp)
+            os.replace(tmp, self.path(roadmap_id))
+        finally:
+            Path(tmp).unlink(missing_ok=True)
+
+    def build(
+        self,
+        scene: Scene,
+        character: Character,
+        data: OfflineData,
+        params: JumpParams,
+        n_nodes: int,
+        seed: int,
+        progress: Callable[[float], None] | None = None,
+        until: Termination = never,
+    ) -> str:
+        """Build (unless already stored) and store the roadmap; returns its id.
+
+        ``progress`` receives fractions in [0, 1]. A build cut short by ``until`` is stored
+        too, with ``complete`` False in its info.
+        """
+        rid = self.roadmap_id(scene, character, data, params, n_nodes, seed)
+        if self.exists(rid):
+            if progress is not None:
+                progress(1.0)
+            return rid
+        clock = time.perf_counter()
+        rparams = params.roadmap_params(scene, character, data)
+        model = ReducedModel.build(
+            scene, character, data, lean=params.lean, mu=params.mu, margin=rparams.max_gap / 2
+        )
+        result = build_roadmap(
+            SceneSampler(model, params.limbs_needed(character)),
+            n_nodes,
+            rparams,
+            rng=np.random.default_rng(seed),
+            collides_many=model.collider,
+            until=until,
+            progress=progress,
+        )
+        if result.value is None:
+            raise RuntimeError(f"roadmap build failed: {result.status.value} {result.message}")
+        roadmap = result.value
+        meta = {
+            "nodes": len(roadmap.nodes),
+            "edges": len(roadmap.edges),
+            "build_seconds": time.perf_counter() - clock,
+            "complete": result.status is PlanStatus.SOLVED,
+            "scene": scene.id,
+            "character": character.id,
+            "seed": int(seed),
+        }
+        self.save(rid, roadmap, meta)
+        return rid
+
+
+def _atomic_write(directory: Path, target: Path, payload: bytes) -> None:
+    fd, tmp = tempfile.mkstemp(dir=directory, suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(payload)
+        os.replace(tmp, target)
+    finally:
+        Path(tmp).unlink(missing_ok=True)
+
+
+__all__ = [
+    "JumpContact",
+    "JumpEnd",
+    "JumpInfo",
+    "JumpParams",
+    "JumpPlan",
+    "RoadmapStore",
+    "plan_jumps",
+]

@@ -1,0 +1,173 @@
+"""One-step mode (the Twister game, 2PAC section 7.3; anchor section 6).
+
+From a state, create or break one limb's contact (or let ``auto`` pick like the game) and
+return the new state with its COM curve and keyframes, or a structured failure.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.contact.context import ContactContext, FailureReason
+from planner.contact.generation import ContactAttempt, break_contact, create_contact
+from planner.contact.state import ContactState
+from planner.contact.step_motion import step_motion
+from planner.motion import ComSegment, Keyframe, Phase
+
+FloatArray = NDArray[np.float64]
+
+_AUTO_RANDOMNESS = 0.3  # m, score jitter of 'auto' creations: the game's spinner
+
+
+@dataclass(frozen=True, slots=True)
+class StepAction:
+    """kind : 'create', 'break' or 'auto'. limb : required for create/break, optional for
+    auto (then only that limb is tried). surface : surface id for a creation. target : (3,)
+    world point near which to create the contact."""
+
+    kind: Literal["create", "break", "auto"]
+    limb: str | None = None
+    surface: int | None = None
+    target: FloatArray | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class StepFailure:
+    """Why a step failed: reason, a human-readable message and the limb concerned."""
+
+    reason: FailureReason
+    message: str
+    limb: str | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class StepResult:
+    """Outcome of :func:`twister_step`.
+
+    ok : success. state : the new state (the input state on failure). action : the action
+    performed ('create' or 'break'), limb : the limb moved (None on failure).
+    phases, com, keyframes : the motion (empty on failure). report : motion report and the
+    attempts made. failure : None on success. timings : seconds per stage.
+    """
+
+    ok: bool
+    state: ContactState
+    phases: tuple[Phase, ...]
+    com: tuple[ComSegment, ...]
+    keyframes: tuple[Keyframe, ...]
+    report: dict[str, Any]
+    failure: StepFailure | None
+    timings: dict[str, float] = field(default_factory=dict)
+    action: str | None = None
+    limb: str | None = None
+
+
+def _attempt(
+    ctx: ContactContext,
+    state: ContactState,
+    kind: str,
+    limb: str,
+    action: StepAction,
+    rng: np.random.Generator,
+) -> ContactAttempt:
+    if kind == "break":
+        return break_contact(ctx, state, limb)
+    return create_contact(ctx, state, limb, rng=rng, surface=action.surface, target=action.target)
+
+
+def twister_step(
+    ctx: ContactContext,
+    state: ContactState,
+    action: StepAction,
+    *,
+    rng: np.random.Generator,
+    until: float | None = None,
+    rate: float = 30.0,
+) -> StepResult:
+    """Perform one contact change; never raises on an infeasible request.
+
+    ``until`` is a ``time.perf_counter()`` deadline after which ``auto`` stops trying limbs.
+    ``auto`` draws limbs in random order (``rng``); a limb in contact is released, a free one
+    placed on a random nearby allowed surface; the first limb that succeeds is used.
+    """
+    t_start = time.perf_counter()
+    timings: dict[str, float] = {}
+    attempts: list[dict[str, Any]] = []
+
+    def failed(reason: FailureReason, message: str, limb: str | None) -> StepResult:
+        timings["total"] = time.perf_counter() - t_start
+        report = {"attempts": attempts}
+        failure = StepFailure(reason, message, limb)
+        return StepResult(False, state, (), (), (), report, failure, timings)
+
+    if action.kind not in ("create", "break", "auto"):
+        return failed(FailureReason.INVALID_ACTION, f"unknown action {action.kind!r}", None)
+    if state.q.shape != (ctx.model.nq,):
+        return failed(FailureReason.INVALID_STATE, f"q must be ({ctx.model.nq},)", None)
+    for c in state.contacts:
+        if not ctx.has_limb(c.limb):
+            return failed(FailureReason.UNKNOWN_LIMB, f"unknown limb {c.limb!r}", c.limb)
+    if action.kind == "auto":
+        names = list(ctx.limb_names()) if action.limb is None else [action.limb]
+        order = [names[i] for i in rng.permutation(len(names))]
+        plan = [("break" if state.contact(n) is not None else "create", n) for n in order]
+    else:
+        if action.limb is None:
+            return failed(FailureReason.INVALID_ACTION, "a limb is required", None)
+        plan = [(action.kind, action.limb)]
+    last: ContactAttempt | None = None
+    t_contacts = time.perf_counter()
+    success: tuple[str, ContactAttempt] | None = None
+    for kind, limb in plan:
+        if until is not None and time.perf_counter() > until and last is not None:
+            break
+        attempt = _attempt(ctx, state, kind, limb, action, rng)
+        attempts.append(
+            {
+                "action": kind,
+                "limb": limb,
+                "ok": attempt.ok,
+                "reason": None if attempt.reason is None else attempt.reason.value,
+                "candidates_tried": attempt.candidates_tried,
+                "resampled": attempt.resampled,
+            }
+        )
+        last = attempt
+        if attempt.ok:
+            success = (kind, attempt)
+            break
+    timings["contacts"] = time.perf_counter() - t_contacts
+    if success is None:
+        assert last is not None
+        reason = last.reason or FailureReason.NOTHING_REACHABLE
+        return failed(reason, last.message, last.limb)
+    kind, attempt = success
+    t_motion = time.perf_counter()
+    try:
+        motion = step_motion(ctx, state, attempt.state, attempt.limb, rate=rate)
+    except (ValueError, np.linalg.LinAlgError) as error:  # defensive: report, never raise
+        timings["motion"] = time.perf_counter() - t_motion
+        return failed(FailureReason.MOTION_FAILED, str(error), attempt.limb)
+    timings["motion"] = time.perf_counter() - t_motion
+    timings["total"] = time.perf_counter() - t_start
+    report = dict(motion.report)
+    report["attempts"] = attempts
+    report["surface"] = attempt.surface
+    report["collisions_fixed"] = attempt.resampled + int(report.get("swing_lift", 0.0) > 0.1)
+    return StepResult(
+        True,
+        attempt.state,
+        motion.phases,
+        motion.com,
+        motion.keyframes,
+        report,
+        None,
+        timings,
+        kind,
+        attempt.limb,
+    )

@@ -1,0 +1,70 @@
+"""Scenes, characters and checkers shared by the reachability / root path / standing tests."""
+
+from __future__ import annotations
+
+from functools import cache
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.character import Character, get_character
+from planner.contact.reachability import ReachabilityChecker
+from planner.offline import OfflineData, load_offline_data
+from planner.poses import pose_matrix, yaw_matrix
+from planner.scene import Scene, load_builtin_scene
+from planner.shapes import Box, Shape
+from tests.paths import gecko_cache_dir
+
+FloatArray = NDArray[np.float64]
+
+
+@cache
+def scene(scene_id: str) -> Scene:
+    """A built-in scene, BVH from the shared cache."""
+    return load_builtin_scene(scene_id, gecko_cache_dir())
+
+
+@cache
+def character_and_data(character_id: str) -> tuple[Character, OfflineData]:
+    """A character and its offline data from the shared cache."""
+    character = get_character(character_id)
+    return character, load_offline_data(character, gecko_cache_dir())
+
+
+@cache
+def checker(character_id: str, scene_id: str) -> ReachabilityChecker:
+    """The default reachability checker of a character in a built-in scene."""
+    character, data = character_and_data(character_id)
+    return ReachabilityChecker(scene(scene_id), character, data)
+
+
+def standing_pose(
+    character_id: str, xyz: tuple[float, float, float], yaw: float = 0.0
+) -> FloatArray:
+    """(4, 4) root pose of the reference standing posture with its feet at height xyz[2]."""
+    character, _ = character_and_data(character_id)
+    position = np.array(xyz, dtype=np.float64)
+    position[2] += float(character.q_ref[2])
+    return pose_matrix(position, yaw_matrix(np.array(yaw)))
+
+
+def cage(
+    centre: tuple[float, float], half: float = 1.0, height: float = 2.5
+) -> list[tuple[Shape, FloatArray]]:
+    """Four thin walls (boxes, ``height`` m tall) around ``centre``: a trunk cannot get in."""
+    cx, cy = centre
+    walls: list[tuple[Shape, FloatArray]] = []
+    for sign in (-1.0, 1.0):
+        walls.append(
+            (
+                Box([half + 0.05, 0.05, height / 2]),
+                pose_matrix(np.array([cx, cy + sign * half, height / 2])),
+            )
+        )
+        walls.append(
+            (
+                Box([0.05, half + 0.05, height / 2]),
+                pose_matrix(np.array([cx + sign * half, cy, height / 2])),
+            )
+        )
+    return walls

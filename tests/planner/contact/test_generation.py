@@ -1,0 +1,160 @@
+"""Contact primitives on the flat and twister scenes (humanoid, quadruped)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from planner.contact.checks import check_state, contact_on_surface, effector_pose, hold_error
+from planner.contact.context import ContactContext, FailureReason
+from planner.contact.generation import (
+    break_contact,
+    character_obstacles,
+    create_contact,
+    maintain,
+    stand_state,
+    state_from_configuration,
+)
+from planner.contact.state import ContactState
+from planner.shapes import Box
+from tests.planner.contact.twister_game import context, discs, scene, start_state
+
+QUAD_FEET = {
+    "lf_foot": (0.525, 0.175),
+    "rf_foot": (0.525, -0.175),
+    "lh_foot": (-0.175, 0.175),
+    "rh_foot": (-0.175, -0.175),
+}
+HUMANOID_FEET = {"left_foot": (0.175, 0.175), "right_foot": (0.175, -0.175)}
+
+
+def _flat_state(character: str) -> tuple[ContactContext, ContactState]:
+    ctx = context(character, "flat", twister=False)
+    q0 = np.array(ctx.character.q_ref)
+    limbs = [lb.name for lb in ctx.character.limbs]
+    feet = limbs if character == "quadruped" else limbs[:2]
+    points = {}
+    for limb in feet:
+        p = effector_pose(ctx, limb, q0)[:3, 3].copy()
+        p[2] = 0.0
+        points[limb] = p
+    attempt = stand_state(ctx, q0, dict.fromkeys(feet, 0), points)
+    assert attempt.ok, attempt.message
+    return ctx, attempt.state
+
+
+@pytest.mark.parametrize("character", ["humanoid", "quadruped"])
+def test_break_and_create_on_flat(character: str) -> None:
+    ctx, state = _flat_state(character)
+    rng = np.random.default_rng(0)
+    for limb in state.limbs:
+        released = break_contact(ctx, state, limb)
+        assert released.ok, released.message
+        assert released.state.differs_by_one(state)
+        assert check_state(ctx, released.state).valid
+        target = state.contact(limb).points.mean(axis=0) + np.array([0.08, 0.0, 0.0])
+        placed = create_contact(ctx, released.state, limb, rng=rng, target=target)
+        assert placed.ok, placed.message
+        contact = placed.state.contact(limb)
+        assert contact is not None and contact_on_surface(ctx, contact)
+        assert np.linalg.norm(contact.points.mean(axis=0)[:2] - target[:2]) < 0.05
+        assert placed.state.differs_by_one(released.state)
+        assert check_state(ctx, placed.state).valid
+
+
+@pytest.mark.parametrize(
+    ("character", "feet"), [("humanoid", HUMANOID_FEET), ("quadruped", QUAD_FEET)]
+)
+def test_twister_primitives(character: str, feet: dict) -> None:
+    ctx = context(character, "twister")
+    state = start_state(ctx, (0.175, 0.0), feet)
+    rng = np.random.default_rng(3)
+    limb = next(iter(feet))
+    released = break_contact(ctx, state, limb)
+    assert released.ok
+    placed = create_contact(ctx, released.state, limb, rng=rng)
+    assert placed.ok and placed.surface in discs(ctx.scene).values()
+    assert check_state(ctx, placed.state).valid
+    # a disc out of reach
+    far = discs(ctx.scene)[(-0.875, -0.525)]
+    miss = create_contact(ctx, released.state, limb, rng=rng, surface=far)
+    assert not miss.ok and miss.reason is FailureReason.NOTHING_REACHABLE
+    assert miss.state is released.state
+
+
+def test_obstacle_on_the_only_disc_blocks_it() -> None:
+    ctx = context("quadruped", "twister")
+    state = start_state(ctx, (0.175, 0.0), QUAD_FEET)
+    rng = np.random.default_rng(0)
+    released = break_contact(ctx, state, "lf_foot")
+    assert released.ok
+    sid = discs(ctx.scene)[(0.525, 0.175)]
+    free = create_contact(ctx, released.state, "lf_foot", rng=rng, surface=sid)
+    assert free.ok
+    pose = np.eye(4)
+    pose[:3, 3] = (0.525, 0.175, 0.1)
+    blocked_ctx = ctx.with_obstacles([(Box(np.array([0.15, 0.15, 0.1])), pose)])
+    blocked = create_contact(blocked_ctx, released.state, "lf_foot", rng=rng, surface=sid)
+    assert not blocked.ok
+    assert blocked.reason in (FailureReason.COLLISION, FailureReason.NOTHING_REACHABLE)
+
+
+def test_primitive_failures_are_structured() -> None:
+    ctx = context("humanoid", "twister")
+    state = start_state(ctx, (0.175, 0.0), HUMANOID_FEET)
+    rng = np.random.default_rng(0)
+    assert create_contact(ctx, state, "tail", rng=rng).reason is FailureReason.UNKNOWN_LIMB
+    assert (
+        create_contact(ctx, state, "left_foot", rng=rng).reason is FailureReason.ALREADY_IN_CONTACT
+    )
+    assert break_contact(ctx, state, "left_hand").reason is FailureReason.NOT_IN_CONTACT
+    one = break_contact(ctx, state, "left_foot")
+    assert one.ok
+    assert break_contact(ctx, one.state, "right_foot").reason is FailureReason.NOT_BALANCED
+
+
+def test_maintain() -> None:
+    ctx = context("quadruped", "twister")
+    state = start_state(ctx, (0.175, 0.0), QUAD_FEET)
+    root = np.eye(4)
+    root[:3, :3] = np.array(
+        [[np.cos(0.02), -np.sin(0.02), 0], [np.sin(0.02), np.cos(0.02), 0], [0, 0, 1]]
+    )
+    root[:3, 3] = state.q[:3] + np.array([0.02, -0.01, -0.01])
+    kept, lost = maintain(ctx, state, root)
+    assert lost == () and kept.limbs == state.limbs
+    assert hold_error(ctx, kept.q, kept.contacts) < 1e-3
+    np.testing.assert_allclose(kept.q[:3], root[:3, 3])
+    root[:3, 3] = state.q[:3] + np.array([0.0, 0.0, 1.0])
+    gone, lost = maintain(ctx, state, root)
+    assert set(lost) == set(state.limbs) and gone.contacts == ()
+
+
+def test_character_obstacles_cover_the_body() -> None:
+    ctx = context("humanoid", "twister")
+    state = start_state(ctx, (0.175, 0.0), HUMANOID_FEET)
+    shapes = character_obstacles(ctx.character, state.q)
+    assert len(shapes) == ctx.character.geometry.ngeoms
+    world = scene("twister").collision.with_obstacles(shapes)
+    probe = np.eye(4)
+    probe[:3, 3] = state.q[:3]
+    assert world.collides(Box(np.array([0.02, 0.02, 0.02])), probe)
+
+
+def test_state_from_configuration_round_trip() -> None:
+    ctx = context("quadruped", "twister")
+    state = start_state(ctx, (0.175, 0.0), QUAD_FEET)
+    given = {c.limb: c.surface for c in state.contacts}
+    again = state_from_configuration(ctx, state.q, given)
+    assert again.ok, again.message
+    inferred = state_from_configuration(ctx, state.q, dict.fromkeys(given))
+    assert inferred.ok
+    assert [c.surface for c in inferred.state.contacts] == list(given.values())
+    for a, b in zip(again.state.contacts, state.contacts, strict=True):
+        np.testing.assert_allclose(a.points, b.points, atol=1e-9)
+    lifted = np.array(state.q)
+    lifted[2] += 0.2
+    bad = state_from_configuration(ctx, lifted, given)
+    assert not bad.ok and bad.reason is FailureReason.INVALID_STATE
+    wrong = state_from_configuration(ctx, state.q, {"tail": None})
+    assert wrong.reason is FailureReason.UNKNOWN_LIMB

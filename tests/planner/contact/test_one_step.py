@@ -1,0 +1,101 @@
+"""Twister games from tests/scenarios/twister (humanoid, quadruped, both on one mat)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from planner.contact.checks import check_state, hold_error, kinematics_of, within_limits
+from planner.contact.context import FailureReason
+from planner.contact.one_step import StepAction, StepFailure, twister_step
+from tests.planner.contact.twister_game import SCENARIOS, context, play, start_state
+
+GAMES = sorted(SCENARIOS.glob("*.json"))
+_CACHE: dict[Path, list] = {}
+
+
+def _moves(path: Path) -> list:
+    if path not in _CACHE:
+        _CACHE[path] = play(path)
+    return _CACHE[path]
+
+
+def _com_at(result, t: float) -> np.ndarray:
+    for seg in result.com:
+        if seg.t0 - 1e-9 <= t <= seg.t1 + 1e-9:
+            s = (t - seg.t0) / (seg.t1 - seg.t0)
+            n = len(seg.control_points) - 1
+            from math import comb
+
+            w = np.array([comb(n, k) * s**k * (1 - s) ** (n - k) for k in range(n + 1)])
+            return w @ seg.control_points
+    raise AssertionError(f"no COM segment at t={t}")
+
+
+@pytest.mark.parametrize("path", GAMES, ids=[p.stem for p in GAMES])
+def test_twister_game(path: Path) -> None:
+    moves = _moves(path)
+    assert len(moves) == 20
+    ok = [m for m in moves if m.result.ok]
+    assert len(ok) >= 18, [m.result.failure for m in moves if not m.result.ok]
+    for m in moves:
+        r = m.result
+        if not r.ok:
+            assert isinstance(r.failure, StepFailure)
+            assert isinstance(r.failure.reason, FailureReason)
+            assert r.state is m.before
+            continue
+        ctx = m.ctx
+        report = check_state(ctx, r.state)
+        assert report.valid, report
+        assert r.state.differs_by_one(m.before)
+        assert len(r.phases) == 2 and len(r.keyframes) >= 2
+        np.testing.assert_array_equal(r.keyframes[0].q, m.before.q)
+        np.testing.assert_array_equal(r.keyframes[-1].q, r.state.q)
+        for kf in r.keyframes:
+            phase = r.phases[0] if kf.t < r.phases[0].t1 else r.phases[1]
+            assert kf.contacts == tuple(c.limb for c in phase.contacts)
+            assert hold_error(ctx, kf.q, phase.contacts) <= 0.01
+            assert within_limits(ctx, kf.q)
+        for phase in r.phases:
+            kin = kinematics_of(ctx, phase.contacts)
+            for t in np.linspace(phase.t0, phase.t1, 7):
+                assert kin.violation(_com_at(r, float(t))) <= 0.02
+        assert r.report["colliding_keyframes"] == 0
+
+
+def test_same_seed_same_game() -> None:
+    path = SCENARIOS / "humanoid.json"
+    first, second = _moves(path), play(path)
+    for a, b in zip(first, second, strict=True):
+        assert a.result.ok == b.result.ok
+        np.testing.assert_array_equal(a.result.state.q, b.result.state.q)
+        assert len(a.result.keyframes) == len(b.result.keyframes)
+        for ka, kb in zip(a.result.keyframes, b.result.keyframes, strict=True):
+            np.testing.assert_array_equal(ka.q, kb.q)
+
+
+def test_structured_failures() -> None:
+    ctx = context("humanoid", "twister")
+    state = start_state(
+        ctx, (0.175, 0.0), {"left_foot": (0.175, 0.175), "right_foot": (0.175, -0.175)}
+    )
+    rng = np.random.default_rng(0)
+    cases = [
+        (StepAction("create", "tail"), FailureReason.UNKNOWN_LIMB),
+        (StepAction("create", "left_foot"), FailureReason.ALREADY_IN_CONTACT),
+        (StepAction("break", "left_hand"), FailureReason.NOT_IN_CONTACT),
+        (StepAction("jump", "left_foot"), FailureReason.INVALID_ACTION),  # type: ignore[arg-type]
+        (StepAction("create", "left_hand", surface=999), FailureReason.UNKNOWN_SURFACE),
+    ]
+    for action, reason in cases:
+        r = twister_step(ctx, state, action, rng=rng)
+        assert not r.ok and r.failure is not None and r.failure.reason is reason
+        assert r.state is state and r.keyframes == ()
+    broken = twister_step(ctx, state, StepAction("break", "left_foot"), rng=rng)
+    assert broken.ok
+    last = twister_step(ctx, broken.state, StepAction("break", "right_foot"), rng=rng)
+    assert not last.ok and last.failure is not None
+    assert last.failure.reason is FailureReason.NOT_BALANCED

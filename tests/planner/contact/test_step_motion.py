@@ -1,0 +1,49 @@
+"""The motion of one contact change: phases, COM segments and keyframes."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+from planner.contact.checks import hold_error, within_limits
+from planner.contact.generation import break_contact, create_contact
+from planner.contact.step_motion import step_motion
+from tests.planner.contact.twister_game import context, start_state
+
+FEET = {"left_foot": (0.175, 0.175), "right_foot": (0.175, -0.175)}
+
+
+def test_break_then_create_motion() -> None:
+    ctx = context("humanoid", "twister")
+    state = start_state(ctx, (0.175, 0.0), FEET)
+    released = break_contact(ctx, state, "right_foot")
+    assert released.ok
+    placed = create_contact(ctx, released.state, "right_foot", rng=np.random.default_rng(2))
+    assert placed.ok
+    for before, after, swing_phase in (
+        (state, released.state, 1),
+        (released.state, placed.state, 0),
+    ):
+        motion = step_motion(ctx, before, after, "right_foot")
+        p0, p1 = motion.phases
+        assert p0.t0 == 0.0 and p0.t1 == p1.t0 and p1.t1 > p1.t0
+        assert p0.contacts == before.contacts and p1.contacts == after.contacts
+        assert motion.phases[swing_phase].t1 - motion.phases[swing_phase].t0 >= 0.4 - 1e-9
+        segs = motion.com
+        assert segs[0].t0 == 0.0 and abs(segs[-1].t1 - p1.t1) < 1e-9
+        for a, b in itertools.pairwise(segs):
+            assert abs(a.t1 - b.t0) < 1e-9
+            np.testing.assert_allclose(a.control_points[-1], b.control_points[0], atol=1e-9)
+        times = np.array([k.t for k in motion.keyframes])
+        assert np.all(np.diff(times) > 0) and np.all(np.diff(times) <= 1 / 30 + 1e-9)
+        np.testing.assert_array_equal(motion.keyframes[0].q, before.q)
+        np.testing.assert_array_equal(motion.keyframes[-1].q, after.q)
+        for k in motion.keyframes:
+            phase = p0 if k.t < p0.t1 else p1
+            assert hold_error(ctx, k.q, phase.contacts) <= 0.01
+            assert within_limits(ctx, k.q)
+        assert motion.report["colliding_keyframes"] == 0
+        assert all(r["fraction_valid"] >= 0.0 for r in motion.report["phases"])
+        faster = step_motion(ctx, before, after, "right_foot", rate=60.0)
+        assert len(faster.keyframes) > 1.7 * len(motion.keyframes)
