@@ -341,3 +341,38 @@ class JumpResponse(BaseModel):
     roadmap: str | None = None
     message: str = ""
     timings: dict[str, float]
+
+
+class PlanOptionsIn(BaseModel):
+    """Tuning of a contact plan; every field has a bound."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    rate: Rate = 30.0
+    margin: float = Field(default=1.0, ge=0, le=1000, description="equilibrium robustness, N")
+    lookahead: float = Field(default=0.3, gt=0, le=2.0, description="m along the root path")
+    max_states: int = Field(default=200, ge=2, le=2000)
+
+
+class PlanRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    character: str = Field(max_length=100)
+    scene: str = Field(max_length=128)
+    start: EndpointIn
+    goal: EndpointIn
+    options: PlanOptionsIn = Field(default_factory=PlanOptionsIn)
+    seed: Seed | None = None
+    time_budget_s: TimeBudget = 10.0
+
+
+class PlanResponse(BaseModel):
+    status: str
+    seed: int
+    message: str = ""
+    phases: list[PhaseOut]
+    com: list[ComSegmentOut]
+    keyframes: list[KeyframeOut]
+    states: list[StateOut]
+    report: dict[str, object]
+    timings: dict[str, float]

@@ -23,6 +23,7 @@ import coal
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
 from planner.ballistic.arc import slerp
 from planner.ballistic.steering import Jump
@@ -45,6 +46,21 @@ from planner.scene import Scene, Surface
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 IntArray = NDArray[np.int64]
+
+
+_TREES: dict[tuple[str, str], cKDTree] = {}
+
+
+def _tree(data: OfflineData, limb: str) -> cKDTree:
+    """k-d tree over a limb's database positions (root frame), cached by the data key."""
+    key = (data.cache_key, limb)
+    tree = _TREES.get(key)
+    if tree is None:
+        if len(_TREES) > 256:
+            _TREES.clear()
+        tree = cKDTree(data.limb(limb).database.positions)
+        _TREES[key] = tree
+    return tree
 
 
 @dataclass(frozen=True, slots=True)
@@ -140,7 +156,7 @@ class JumpAnimator:
     apex_blend: float = 0.4
     tolerance: float = 1e-3
     angular_tolerance: float = 1e-2
-    steps: int = 6
+    steps: int = 4
     limbs: LimbCollider | None = None
     candidates: int = 8
 
@@ -170,13 +186,12 @@ class JumpAnimator:
         limb = self.character.limbs[k]
         database = self.data.limb(limb.name).database
         target = rot.T @ (point - position)
-        near = database.samples_near(target, self.search_radius)
-        seeds: list[int] = [int(near[0])] if len(near) else []
-        if len(near) > 1:
-            gap = np.linalg.norm(database.positions[near] - target, axis=1)
-            nearest = int(near[int(np.argmin(gap))])
-            if nearest != seeds[0]:
-                seeds.append(nearest)
+        tree = _tree(self.data, limb.name)
+        near = tree.query_ball_point(target, self.search_radius)
+        seeds: list[int] = [int(min(near))] if near else []  # best ranked (ascending cost)
+        _, nearest = tree.query(target)
+        if int(nearest) not in seeds:
+            seeds.append(int(nearest))
         seeds_q = [database.q[i] for i in seeds] or [q[limb.idx_q]]
         task = self._contact_task(k, point, normal)
         for seed in seeds_q:

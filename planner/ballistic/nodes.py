@@ -198,6 +198,14 @@ def _convex(loop: FloatArray) -> bool:
     return bool(np.all(turn >= -1e-12))
 
 
+def _convex_planes(surface: Surface) -> list[tuple[float, float, float]] | None:
+    """Half-planes of a surface made of one convex loop, None otherwise."""
+    if len(surface.polygons_uv) != 1 or not _convex(surface.polygons_uv[0]):
+        return None
+    a, b = _halfplanes(surface.polygons_uv[0])
+    return [(float(x), float(y), float(z)) for (x, y), z in zip(a, b, strict=True)]
+
+
 def _halfplanes(polygon: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Half-planes a x <= b (outward a) of a counter-clockwise convex polygon (k, 2)."""
     edge = np.roll(polygon, -1, axis=0) - polygon
@@ -205,14 +213,65 @@ def _halfplanes(polygon: FloatArray) -> tuple[FloatArray, FloatArray]:
     return a, np.einsum("ij,ij->i", a, polygon)
 
 
+def _clip_convex(
+    polygon: list[list[float]], planes: list[tuple[float, float, float]]
+) -> list[list[float]]:
+    """Sutherland-Hodgman clip of a small polygon by half-planes (ax, ay, b): a . x <= b, in
+    plain Python (faster than numpy at these sizes)."""
+    out = polygon
+    for ax, ay, b in planes:
+        if not out:
+            break
+        side = [ax * x + ay * y - b for x, y in out]
+        if max(side) <= 0.0:
+            continue
+        if min(side) > 0.0:
+            return []
+        nxt: list[list[float]] = []
+        count = len(out)
+        for i in range(count):
+            j = (i + 1) % count
+            si, sj = side[i], side[j]
+            if si <= 0.0:
+                nxt.append(out[i])
+            if (si <= 0.0) != (sj <= 0.0):
+                t = si / (si - sj)
+                xi, yi = out[i]
+                xj, yj = out[j]
+                nxt.append([xi + t * (xj - xi), yi + t * (yj - yi)])
+        out = nxt
+    return out
+
+
+def _area_centroid(polygon: list[list[float]]) -> tuple[float, float, float]:
+    """Signed area and centroid (x, y) of a simple polygon given as [x, y] pairs."""
+    area = cx = cy = 0.0
+    x0, y0 = polygon[0]
+    count = len(polygon)
+    for i in range(1, count - 1):
+        x1, y1 = polygon[i]
+        x2, y2 = polygon[i + 1]
+        cross = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+        area += cross
+        cx += cross * (x0 + x1 + x2)
+        cy += cross * (y0 + y1 + y2)
+    if abs(area) < 1e-300:
+        return 0.0, x0, y0
+    return 0.5 * area, cx / (3.0 * area), cy / (3.0 * area)
+
+
 def _section(
-    world: FloatArray, edges: IntArray, surface: Surface, convex: bool
+    world: FloatArray,
+    edges: IntArray,
+    surface: Surface,
+    convex: list[tuple[float, float, float]] | None,
 ) -> tuple[float, FloatArray] | None:
     """Area (m^2) and centroid (3,) of hull(world) ∩ surface, or None if empty.
 
     world : (V, 3) the hull's vertices in the world frame; edges : (E, 2) its edges. The plane
     section of the hull is the convex polygon of the edge/plane crossings; it is clipped by the
-    surface polygon (convex surface) or clips each surface loop (otherwise)."""
+    surface polygon (``convex``: its half-planes, for a convex surface) or clips each surface
+    loop (otherwise)."""
     dist = (world - surface.centroid) @ surface.normal
     da, db = dist[edges[:, 0]], dist[edges[:, 1]]
     cross = (da < 0.0) != (db < 0.0)
@@ -225,19 +284,23 @@ def _section(
     centre = uv.mean(axis=0)
     order = np.argsort(np.arctan2(uv[:, 1] - centre[1], uv[:, 0] - centre[0]))
     section = uv[order]
+    if convex is not None:
+        kept = _clip_convex(section.tolist(), convex)
+        if len(kept) < 3:
+            return None
+        area, cx, cy = _area_centroid(kept)
+        if area <= 1e-10:
+            return None
+        return area, np.asarray(surface.from_plane(np.array([cx, cy]))[0], dtype=np.float64)
+    a2, b2 = _halfplanes(section)
     total = 0.0
     moment = np.zeros(2)
-    if convex:
-        a2, b2 = _halfplanes(surface.polygons_uv[0])
-        pieces = [g2.clip_halfplanes(section, a2, b2)]
-    else:
-        a2, b2 = _halfplanes(section)
-        pieces = [g2.clip_halfplanes(loop, a2, b2) for loop in surface.polygons_uv]
-    for clipped in pieces:
+    for loop in surface.polygons_uv:
+        clipped = g2.clip_halfplanes(loop, a2, b2)
         if len(clipped) < 3:
             continue
-        area, mom = g2.area_moments(clipped)
-        total += area
+        piece, mom = g2.area_moments(clipped)
+        total += piece
         moment += mom
     if total <= 1e-10:
         return None
@@ -259,7 +322,7 @@ class ReducedModel:
     workspaces: tuple[ConvexPolytope, ...]
     edges: tuple[IntArray, ...]
     surfaces: tuple[Surface, ...]
-    convex: tuple[bool, ...]
+    convex: tuple[list[tuple[float, float, float]] | None, ...]
     reference_points: FloatArray
     stance: IntArray
     mus: FloatArray
@@ -305,7 +368,7 @@ class ReducedModel:
             workspaces,
             tuple(edges for _, edges in hulls),
             surfaces,
-            tuple(len(sf.polygons_uv) == 1 and _convex(sf.polygons_uv[0]) for sf in surfaces),
+            tuple(_convex_planes(sf) for sf in surfaces),
             ref,
             stance,
             mus,
@@ -398,9 +461,11 @@ class ReducedModel:
         out[:, 3, 3] = 1.0
         c, s = np.cos(yaw), np.sin(yaw)
         for i in range(len(pts)):
-            up = nrm[i] if nrm[i, 2] > np.sqrt(0.5) else np.array([0.0, 0.0, 1.0])
             turn = np.array([[c[i], -s[i], 0.0], [s[i], c[i], 0.0], [0.0, 0.0, 1.0]])
-            rot = rotation_between(np.array([0.0, 0.0, 1.0]), up) @ turn
+            if np.sqrt(0.5) < nrm[i, 2] < 1.0 - 1e-12:
+                rot = rotation_between(np.array([0.0, 0.0, 1.0]), nrm[i]) @ turn
+            else:
+                rot = turn
             out[i, :3, :3] = rot
             out[i, :3, 3] = pts[i] - rot @ self.reference_points[limb[i]]
         return out

@@ -61,7 +61,7 @@ class ContactParams:
     """
 
     margin: float = 1.0
-    com_shrink: float = 0.02
+    com_shrink: float = 0.03
     max_candidates: int = 6
     surface_tolerance: float = 0.005
     normal_tolerance: float = math.radians(5.0)

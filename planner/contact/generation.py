@@ -503,9 +503,11 @@ def break_contact(ctx: ContactContext, state: ContactState, limb: str) -> Contac
     q2 = np.array(res2.q)
     new = ContactState(q2, after)
     report = check_state(ctx, new)
-    if not report.valid:
+    if not report.valid or kin_before.violation(report.com) > 1e-3:
         new = ContactState(q1, after)
         report = check_state(ctx, new)
+    if kin_before.violation(report.com) > 1e-3:  # 2PAC: the COM must serve both sets
+        return _fail(state, FailureReason.NOT_BALANCED, limb, "COM out of reach", 1)
     if not report.valid:
         reason = (
             FailureReason.COLLISION if not report.collision_free else FailureReason.NOT_BALANCED

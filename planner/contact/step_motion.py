@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.contact.checks import (
+    balance_margin,
     com_of,
     effector_pose,
     hold_error,
@@ -29,12 +30,16 @@ from planner.contact.generation import hold_tasks, posture_task
 from planner.contact.state import ContactState
 from planner.kinematics import ComTask, keyframe_times, solve_ik, swing_trajectory, track_com
 from planner.motion import ComSegment, Keyframe, Phase
-from trajectory import plan_com_trajectory
+from trajectory import BezierCurve, PiecewiseBezier, quasi_static_polyline, validate_dynamics
 
 FloatArray = NDArray[np.float64]
 
 _LIFTS = (0.08, 0.18)  # m, swing arc heights tried in turn
 _MIN_SWING = 0.4  # s, shortest swing
+_ACC_FEW = 0.2  # m/s^2, peak COM acceleration over the smaller contact set (creation)
+_ACC_MANY = 0.2  # m/s^2, peak COM acceleration over the larger contact set (break)
+_SETTLE = 0.1  # s, the short phase without swing
+_N_CHECKS = 5  # dynamic checks per phase
 _FULL_CHECK_STRIDE = 3  # whole-body collision check every this many keyframes
 _REPAIR_TOL = 2e-3  # m, keyframes whose stance slips more are re-solved
 
@@ -66,29 +71,38 @@ def step_motion(
     phase_b, phase_a = phase_of(ctx, before.contacts), phase_of(ctx, after.contacts)
     kin_b, kin_a = kinematics_of(ctx, before.contacts), kinematics_of(ctx, after.contacts)
     c0, c1 = com_of(ctx, before.q), com_of(ctx, after.q)
-    traj = plan_com_trajectory(
-        [phase_b, phase_a], c0, c1, kinematics=[kin_b, kin_a], n_checks=3, min_window=0.5
-    )
-    times = np.asarray(traj.phase_times, dtype=np.float64).copy()
-    curve = traj.curve
     creating = after.contact(limb) is not None
-    segments = [ComSegment(seg.t0, seg.t1, np.array(seg.control_points)) for seg in traj.segments]
-    # the swing needs time: pad its phase with the COM at rest when 2PAC gave it none
-    pad = max(0.0, _MIN_SWING - float(times[1] - times[0] if creating else times[2] - times[1]))
-    if pad > 0.0 and creating:
-        segments = [ComSegment(0.0, pad, np.stack([c0, c0]))] + [
-            ComSegment(g.t0 + pad, g.t1 + pad, g.control_points) for g in segments
-        ]
-        times[1:] += pad
-    elif pad > 0.0:
-        end = segments[-1].t1
-        segments.append(ComSegment(end, end + pad, np.stack([c1, c1])))
-        times[2] += pad
-    offset = pad if creating else 0.0
+    # The COM moves rest-to-rest while the larger contact set holds it (quasi-static, 2PAC
+    # section 5: the end point is a transition point, in equilibrium(fewer contacts) and in
+    # both kinematic sets); the swing then happens with the COM at rest.
+    acc = _ACC_FEW if creating else _ACC_MANY
+    move: list[BezierCurve] = []
+    if float(np.linalg.norm(c1 - c0)) > 1e-6:
+        move = list(quasi_static_polyline(np.stack([c0, c1]), acc).segments)
+    t_move = move[-1].t1 if move else 0.0
+    if creating:
+        t_phase = max(t_move, _MIN_SWING)
+        times = np.array([0.0, t_phase, t_phase + _SETTLE])
+    else:
+        t_phase = max(t_move, _SETTLE)
+        times = np.array([0.0, t_phase, t_phase + _MIN_SWING])
+    curves = list(move)
+    if t_phase > t_move + 1e-9:
+        curves.append(BezierCurve(np.stack([c1, c1]), t_move, t_phase))
+    curves.append(BezierCurve(np.stack([c1, c1]), t_phase, float(times[2])))
+    curve = PiecewiseBezier(tuple(curves))
+    reports = validate_dynamics(curve, [phase_b, phase_a], times, _N_CHECKS)
+    segments = [ComSegment(g.t0, g.t1, np.array(g.control_points)) for g in curve.segments]
     t_first, t_last = float(curve.t0), float(curve.t1)
+    fewer = before.contacts if creating else after.contacts
+    transition = {
+        "point": c1.tolist(),
+        "margin": balance_margin(ctx, fewer, c1),
+        "kinematic_violation": float(max(kin_b.violation(c1), kin_a.violation(c1))),
+    }
 
     def com_samples(ts: FloatArray) -> FloatArray:
-        tt = np.clip(ts - offset, t_first, t_last)
+        tt = np.clip(ts, t_first, t_last)
         return np.asarray(curve(tt), dtype=np.float64)
 
     def com_at(t: float) -> FloatArray:
@@ -171,10 +185,13 @@ def step_motion(
                 "fraction_valid": r.fraction_valid,
                 "worst_violation": r.worst_violation,
             }
-            for r in traj.reports
+            for r in reports
         ],
-        "transition_slack": [float(tp.slack) for tp in traj.transitions],
-        "quasi_static_feasible": bool(traj.quasi_static_feasible),
+        "transition": transition,
+        "transition_slack": [max(0.0, transition["kinematic_violation"])],
+        "quasi_static_feasible": bool(
+            transition["margin"] >= ctx.params.margin and transition["kinematic_violation"] <= 1e-3
+        ),
         "max_hold_error": worst_hold,
         "colliding_keyframes": hits,
         "swing_lift": float(lift),

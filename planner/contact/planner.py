@@ -1,0 +1,166 @@
+"""The whole contact-planning pipeline: start and goal states, root path, contact sequence,
+COM trajectory and keyframes (DESIGN.md steps 3-8).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.character import Character
+from planner.contact.context import ContactParams, make_context
+from planner.contact.reachability import ReachabilityChecker
+from planner.contact.root_path import plan_root_path
+from planner.contact.sequence import SequenceParams, contact_sequence
+from planner.contact.sequence_motion import SequenceMotion, sequence_motion
+from planner.contact.standing import standing_state, state_from_root_pose
+from planner.contact.state import ContactState
+from planner.kinematics import frame_placement
+from planner.offline import OfflineData
+from planner.result import PlanResult, PlanStatus
+from planner.scene import Scene
+from planner.termination import Deadline
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class Endpoint:
+    """Where a plan starts or ends: a root pose (4, 4), a point to stand at (3,), or a state."""
+
+    root_pose: FloatArray | None = None
+    stand_at: FloatArray | None = None
+    state: ContactState | None = None
+
+    def __post_init__(self) -> None:
+        given = [x is not None for x in (self.root_pose, self.stand_at, self.state)]
+        if sum(given) != 1:
+            raise ValueError("an endpoint is exactly one of root_pose, stand_at or state")
+
+
+@dataclass(frozen=True, slots=True)
+class PlanOptions:
+    """rate : keyframes per second. step : m between root-path checks (<= 0.05).
+    sequence : contact-sequence tuning. contact : contact-generation tuning."""
+
+    rate: float = 30.0
+    step: float = 0.05
+    sequence: SequenceParams = field(default_factory=SequenceParams)
+    contact: ContactParams = field(default_factory=ContactParams)
+
+
+@dataclass(frozen=True, slots=True)
+class ContactPlan:
+    """A planned motion: states (one contact change apart), root path and the motion."""
+
+    states: tuple[ContactState, ...]
+    root_path: FloatArray
+    motion: SequenceMotion | None
+    timings: dict[str, float]
+
+
+def _resolve(
+    endpoint: Endpoint,
+    scene: Scene,
+    character: Character,
+    data: OfflineData,
+    checker: ReachabilityChecker,
+    rng: np.random.Generator,
+    until: Deadline,
+) -> PlanResult[ContactState]:
+    if endpoint.state is not None:
+        return PlanResult(PlanStatus.SOLVED, endpoint.state)
+    if endpoint.stand_at is not None:
+        return standing_state(
+            scene, character, data, endpoint.stand_at, rng=rng, until=until, checker=checker
+        )
+    assert endpoint.root_pose is not None
+    return state_from_root_pose(scene, character, data, endpoint.root_pose, checker=checker)
+
+
+def _root_pose(character: Character, q: FloatArray) -> FloatArray:
+    return frame_placement(character.model, q, 1)
+
+
+def plan_contact_motion(
+    scene: Scene,
+    character: Character,
+    data: OfflineData,
+    start: Endpoint,
+    goal: Endpoint,
+    *,
+    rng: np.random.Generator,
+    time_budget_s: float,
+    options: PlanOptions | None = None,
+) -> PlanResult[ContactPlan]:
+    """Plan from ``start`` to ``goal`` within ``time_budget_s`` seconds.
+
+    The status is the worst of the stages: INVALID_START / INVALID_GOAL when an endpoint has
+    no valid standing state, the root path's status when it fails (TIMEOUT, INFEASIBLE), the
+    contact sequence's otherwise (SOLVED, or APPROXIMATE with the partial plan). Keyframes
+    are computed for whatever states were found, within the remaining budget.
+    """
+    opts = options or PlanOptions()
+    until = Deadline(time_budget_s)
+    timings: dict[str, float] = {}
+    clock = time.perf_counter()
+
+    def lap(name: str) -> None:
+        nonlocal clock
+        now = time.perf_counter()
+        timings[name] = timings.get(name, 0.0) + now - clock
+        clock = now
+
+    checker = ReachabilityChecker(scene, character, data)
+    empty_path = np.zeros((0, 4, 4))
+    start_state = _resolve(start, scene, character, data, checker, rng, until)
+    if not start_state.status or start_state.value is None:
+        lap("endpoints")
+        status = PlanStatus.TIMEOUT if until() else PlanStatus.INVALID_START
+        plan = ContactPlan((), empty_path, None, timings)
+        return PlanResult(status, plan, {}, f"start: {start_state.message}")
+    goal_state = _resolve(goal, scene, character, data, checker, rng, until)
+    lap("endpoints")
+    if not goal_state.status or goal_state.value is None:
+        status = PlanStatus.TIMEOUT if until() else PlanStatus.INVALID_GOAL
+        plan = ContactPlan((start_state.value,), empty_path, None, timings)
+        return PlanResult(status, plan, {}, f"goal: {goal_state.message}")
+
+    path = plan_root_path(
+        checker,
+        _root_pose(character, start_state.value.q),
+        _root_pose(character, goal_state.value.q),
+        rng=rng,
+        until=until,
+        step=opts.step,
+    )
+    lap("root_path")
+    if not path.status or path.value is None:
+        plan = ContactPlan((start_state.value,), empty_path, None, timings)
+        return PlanResult(path.status, plan, dict(path.stats), path.message)
+    poses = path.value.resample(opts.sequence.spacing)
+
+    ctx = make_context(scene, character, data, opts.contact)
+    sequence = contact_sequence(
+        ctx,
+        start_state.value,
+        poses,
+        goal_state.value,
+        rng=rng,
+        until=until,
+        params=opts.sequence,
+    )
+    lap("contacts")
+    states = sequence.value or (start_state.value,)
+    # Keyframes get their own budget share so a plan that used its time still animates.
+    motion_deadline = Deadline(max(until.remaining(), 0.25 * time_budget_s))
+    motion = sequence_motion(character, data, states, rate=opts.rate, until=motion_deadline)
+    lap("motion")
+    status = sequence.status
+    if status is PlanStatus.TIMEOUT and len(states) > 1:
+        status = PlanStatus.APPROXIMATE
+    stats = {**path.stats, **sequence.stats}
+    return PlanResult(status, ContactPlan(states, poses, motion, timings), stats, sequence.message)

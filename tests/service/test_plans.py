@@ -1,0 +1,101 @@
+"""POST /v1/plans over HTTP, through the worker process pool."""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import httpx
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.anyio
+
+WALK = {
+    "character": "humanoid",
+    "scene": "flat",
+    "start": {"stand_at": [0.0, 0.0, 0.0]},
+    "goal": {"stand_at": [1.0, 0.0, 0.0]},
+    "seed": 7,
+    "time_budget_s": 20,
+}
+
+
+def _without_timings(body: dict[str, Any]) -> dict[str, Any]:
+    return {k: v for k, v in body.items() if k != "timings"}
+
+
+async def test_plan_walk_answers_with_phases_and_keyframes(client: httpx.AsyncClient) -> None:
+    response = await client.post("/v1/plans", json=WALK, timeout=120)
+    assert response.status_code == 200, response.text
+    body = response.json()
+    assert body["seed"] == 7
+    assert body["status"] in {"SOLVED", "APPROXIMATE"}
+    assert len(body["states"]) >= 2
+    assert len(body["phases"]) == len(body["states"])
+    times = [k["t"] for k in body["keyframes"]]
+    assert times == sorted(times)
+    assert body["com"][0]["t0"] == pytest.approx(0.0)
+    for a, b in zip(body["com"], body["com"][1:], strict=False):
+        assert a["t1"] == pytest.approx(b["t0"])
+    for a, b in zip(body["states"], body["states"][1:], strict=False):
+        limbs_a = {c["limb"] for c in a["contacts"]}
+        limbs_b = {c["limb"] for c in b["contacts"]}
+        assert len(limbs_a ^ limbs_b) == 1, "consecutive states differ by one contact"
+    for key in ("endpoints", "root_path", "contacts", "motion"):
+        assert key in body["timings"]
+    quat = body["keyframes"][0]["root"]["orientation"]
+    assert np.linalg.norm(quat) == pytest.approx(1.0)
+
+
+async def test_same_seed_same_answer(client: httpx.AsyncClient) -> None:
+    first = (await client.post("/v1/plans", json=WALK, timeout=120)).json()
+    second = (await client.post("/v1/plans", json=WALK, timeout=120)).json()
+    assert _without_timings(first) == _without_timings(second)
+
+
+async def test_seed_is_drawn_and_echoed(client: httpx.AsyncClient) -> None:
+    request = {**WALK, "goal": {"stand_at": [0.3, 0.0, 0.0]}}
+    request.pop("seed")
+    body = (await client.post("/v1/plans", json=request, timeout=120)).json()
+    assert isinstance(body["seed"], int)
+
+
+@pytest.mark.parametrize(
+    ("change", "field"),
+    [
+        ({"time_budget_s": 61}, "time_budget_s"),
+        ({"time_budget_s": 0}, "time_budget_s"),
+        ({"start": {"stand_at": [0, 0, 0], "position": [0, 0, 1]}}, "start"),
+        ({"start": {}}, "start"),
+        ({"goal": {"position": [0, 0, 1], "orientation": [0, 0, 0, 0]}}, "goal"),
+        ({"options": {"rate": 1000}}, "options.rate"),
+        ({"seed": -1}, "seed"),
+        ({"unexpected": 1}, "unexpected"),
+    ],
+)
+async def test_bad_requests_name_the_field(
+    client: httpx.AsyncClient, change: dict[str, Any], field: str
+) -> None:
+    response = await client.post("/v1/plans", json={**WALK, **change})
+    assert response.status_code == 422, response.text
+    error = response.json()["error"]
+    assert error["field"].startswith(field)
+
+
+@pytest.mark.parametrize(("key", "value"), [("character", "nobody"), ("scene", "nowhere")])
+async def test_unknown_ids_are_404(client: httpx.AsyncClient, key: str, value: str) -> None:
+    response = await client.post("/v1/plans", json={**WALK, key: value}, timeout=60)
+    assert response.status_code == 404
+    assert response.json()["error"]["field"] == key
+
+
+async def test_unreachable_goal_stops_within_budget(client: httpx.AsyncClient) -> None:
+    request = {**WALK, "goal": {"stand_at": [40.0, 40.0, 0.0]}, "time_budget_s": 1}
+    await client.get("/health")
+    started = time.monotonic()
+    response = await client.post("/v1/plans", json=request, timeout=60)
+    elapsed = time.monotonic() - started
+    assert response.status_code == 200
+    assert response.json()["status"] in {"TIMEOUT", "INFEASIBLE", "INVALID_GOAL"}
+    assert elapsed < 1.5 + 5.0  # budget + margin, plus a worker's first start-up
