@@ -10,7 +10,7 @@ from fastapi import FastAPI
 
 from service import __version__
 from service.errors import install_error_handlers
-from service.routes import characters, health, plans, scenes
+from service.routes import characters, health, plans, scenes, twister
 from service.settings import Settings, get_settings
 from service.workers import WorkerPool, registry_for
 
@@ -45,4 +45,5 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(characters.router)
     app.include_router(scenes.router)
     app.include_router(plans.router)
+    app.include_router(twister.router)
     return app

@@ -14,9 +14,14 @@ from typing import Any
 
 import numpy as np
 
-from planner.contact.context import ContactParams
+from planner.contact.checks import effector_pose, make_contact
+from planner.contact.context import ContactContext, ContactParams, make_context
+from planner.contact.one_step import StepAction, twister_step
 from planner.contact.planner import Endpoint, PlanOptions, plan_contact_motion
 from planner.contact.sequence import SequenceParams
+from planner.contact.standing import standing_state
+from planner.contact.state import ContactState
+from planner.contact.surroundings import character_obstacles, with_surfaces
 from planner.poses import normalize_quaternion, pose_matrix, quaternion_to_matrix
 from planner.scene import Scene
 from service import convert, schemas
@@ -108,5 +113,89 @@ def run_plan(request_json: str, seed: int) -> dict[str, Any]:
         states=[convert.state_out(character, s) for s in plan.states] if plan else [],
         report=report,
         timings=dict(plan.timings) if plan else {},
+    )
+    return response.model_dump(mode="json")
+
+
+def _planner_contacts(ctx: ContactContext, state: ContactState) -> ContactState:
+    """Rebuild a request's contacts exactly as the planner builds them (one constructor)."""
+    contacts = []
+    for index, contact in enumerate(state.contacts):
+        if contact.surface < 0 or contact.surface >= len(ctx.scene.surfaces):
+            raise invalid(
+                f"the {contact.limb} contact is not on a surface of scene '{ctx.scene.id}'",
+                f"state.contacts.{index}",
+            )
+        pose = effector_pose(ctx, contact.limb, state.q)
+        contacts.append(make_contact(ctx, contact.limb, pose, contact.surface))
+    return ContactState(state.q, tuple(contacts))
+
+
+def run_twister_step(request_json: str, seed: int) -> dict[str, Any]:
+    """``POST /v1/twister/step`` in a worker: one contact change, as a JSON-ready dict."""
+    request = schemas.TwisterStepRequest.model_validate_json(request_json)
+    started = time.perf_counter()
+    entry = character_entry(request.character)
+    scene = scene_by_id(request.scene)
+    character, data = entry.character, entry.data
+    rng = np.random.default_rng(seed)
+    clock = Stopwatch()
+    with clock.stage("state"):
+        if request.state is not None:
+            state = with_surfaces(
+                scene, convert.state_from_request(character, request.state, "state")
+            )
+        else:
+            assert request.stand_at is not None
+            standing = standing_state(scene, character, data, np.asarray(request.stand_at), rng=rng)
+            if not standing.status or standing.value is None:
+                raise invalid(f"no standing state there: {standing.message}", "stand_at")
+            state = standing.value
+        obstacles = []
+        for index, other in enumerate(request.others):
+            other_entry = worker_registry().get_character(other.character)
+            if other_entry is None:
+                raise not_found("character", other.character, f"others.{index}.character")
+            q_other = convert.q_from_configuration(
+                other_entry.character, other.configuration, f"others.{index}.configuration"
+            )
+            obstacles.extend(character_obstacles(other_entry.character, q_other))
+    limb_names = {limb.name for limb in character.limbs}
+    if request.action.limb is not None and request.action.limb not in limb_names:
+        raise invalid(
+            f"unknown limb '{request.action.limb}'; expected one of {sorted(limb_names)}",
+            "action.limb",
+        )
+    ctx = make_context(scene, character, data, obstacles=obstacles)
+    state = _planner_contacts(ctx, state)
+    action = StepAction(
+        kind=request.action.kind,
+        limb=request.action.limb,
+        surface=request.action.surface,
+        target=None if request.action.target is None else np.asarray(request.action.target),
+    )
+    deadline = started + request.time_budget_s
+    with clock.stage("step"):
+        result = twister_step(ctx, state, action, rng=rng, until=deadline, rate=request.rate)
+    failure = None
+    if result.failure is not None:
+        failure = schemas.FailureOut(
+            reason=result.failure.reason.value,
+            message=result.failure.message,
+            limb=result.failure.limb,
+        )
+    report = {k: v for k, v in result.report.items() if "second" not in k}
+    report["action"] = result.action
+    report["limb"] = result.limb
+    response = schemas.TwisterStepResponse(
+        status="SOLVED" if result.ok else "INFEASIBLE",
+        seed=seed,
+        state=convert.state_out(character, result.state),
+        phases=[convert.phase_out(p) for p in result.phases],
+        com=[convert.com_segment_out(s) for s in result.com],
+        keyframes=[convert.keyframe_out(character, k) for k in result.keyframes],
+        failure=failure,
+        report=report,
+        timings={**clock.timings, **{f"step.{k}": v for k, v in result.timings.items()}},
     )
     return response.model_dump(mode="json")

@@ -136,7 +136,7 @@ def q_from_configuration(
     for index, name in enumerate(character.joint_names):
         if name in configuration.joints:
             value = configuration.joints[name]
-            low, high = character.lower[7 + index], character.upper[7 + index]
+            low, high = character.lower[index], character.upper[index]
             if not low - 1e-6 <= value <= high + 1e-6:
                 raise ApiError(
                     422,

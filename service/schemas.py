@@ -165,6 +165,9 @@ class ContactIn(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     limb: str = Field(max_length=100)
+    points: list[Point3] | None = Field(
+        default=None, max_length=16, description="as returned; recomputed from the configuration"
+    )
     normal: Point3 | None = None
     mu: float | None = Field(default=None, gt=0, le=5)
     surface: int | None = Field(default=None, ge=-1, le=10_000_000)

@@ -63,6 +63,23 @@ def _tree(data: OfflineData, limb: str) -> cKDTree:
     return tree
 
 
+_TUCKED: dict[tuple[str, str], IntArray] = {}
+
+
+def _tucked(data: OfflineData, limb: str) -> IntArray:
+    """A limb's database samples by decreasing effector height in the root frame (tucked
+    first), cached by the data key."""
+    key = (data.cache_key, limb)
+    order = _TUCKED.get(key)
+    if order is None:
+        if len(_TUCKED) > 256:
+            _TUCKED.clear()
+        heights = data.limb(limb).database.positions[:, 2]
+        order = np.asarray(np.argsort(-heights, kind="stable"), dtype=np.int64)
+        _TUCKED[key] = order
+    return order
+
+
 @dataclass(frozen=True, slots=True)
 class Stance:
     """A whole-body contact configuration at a node.
@@ -144,7 +161,8 @@ class JumpAnimator:
     (m), angular_tolerance (rad): how well held contacts must hold. steps : the IK walk takes
     at least this many steps per contact phase (besides the keyframe times). limbs : when
     given, flight frames are checked and a colliding limb is re-sampled (the reference
-    posture, its break/creation joints, then the ``candidates`` best-ranked database samples;
+    posture, its break/creation joints, the ``candidates`` best-ranked database samples, then
+    the ``candidates`` most tucked ones (highest effector in the root frame);
     the first collision-free one wins; only that limb's joints change, the root never).
     """
 
@@ -156,7 +174,7 @@ class JumpAnimator:
     apex_blend: float = 0.4
     tolerance: float = 1e-3
     angular_tolerance: float = 1e-2
-    steps: int = 4
+    steps: int = 3
     limbs: LimbCollider | None = None
     candidates: int = 8
 
@@ -307,7 +325,7 @@ class JumpAnimator:
                 q,
                 [*tasks, posture],
                 active=dofs,
-                max_iterations=15,
+                max_iterations=8,
                 tolerance=self.tolerance,
                 angular_tolerance=self.angular_tolerance,
             )
@@ -397,6 +415,7 @@ class JumpAnimator:
             database = self.data.limb(limb.name).database
             options = [self.character.q_ref[limb.idx_q], q_break[limb.idx_q], q_create[limb.idx_q]]
             options.extend(database.q[: self.candidates])
+            options.extend(database.q[_tucked(self.data, limb.name)[: self.candidates]])
             for option in options:
                 trial = np.array(out)
                 trial[limb.idx_q] = option

@@ -96,6 +96,30 @@ class JumpParams:
         if not 0.0 < self.build_share <= 1.0:
             raise ValueError("build_share must be in (0, 1]")
 
+    def to_json(self) -> str:
+        """Canonical JSON of every field (``roadmap`` as its own JSON)."""
+        data = {
+            "roadmap": self.roadmap.to_json(),
+            "n_nodes": self.n_nodes,
+            "min_limbs": self.min_limbs,
+            "lean": self.lean,
+            "mu": self.mu,
+            "rate": self.rate,
+            "phase_fraction": self.phase_fraction,
+            "stand_radius": self.stand_radius,
+            "roadmap_seed": self.roadmap_seed,
+            "limb_collisions": self.limb_collisions,
+            "build_share": self.build_share,
+        }
+        return json.dumps(data, sort_keys=True)
+
+    @staticmethod
+    def from_json(text: str) -> JumpParams:
+        """Inverse of ``to_json``."""
+        data = json.loads(text)
+        data["roadmap"] = RoadmapParams.from_json(data["roadmap"])
+        return JumpParams(**data)
+
     def limbs_needed(self, character: Character) -> int:
         """The number of contacts a node needs for ``character``."""
         if self.min_limbs is not None:
@@ -503,6 +527,12 @@ class RoadmapStore:
         """The stored roadmap; FileNotFoundError if absent."""
         return Roadmap.load(self.path(roadmap_id))
 
+    def params(self, roadmap_id: str) -> JumpParams:
+        """The ``JumpParams`` the roadmap was built with (pass them to ``plan_jumps`` with the
+        roadmap); FileNotFoundError if absent."""
+        meta = json.loads(self.path(roadmap_id).with_suffix(".json").read_text())
+        return JumpParams.from_json(meta["params"])
+
     def save(self, roadmap_id: str, roadmap: Roadmap, meta: dict[str, Any]) -> None:
         """Store a roadmap atomically (the .json first, then the .npz that marks it ready)."""
         self.directory.mkdir(parents=True, exist_ok=True)
@@ -556,6 +586,7 @@ class RoadmapStore:
             raise RuntimeError(f"roadmap build failed: {result.status.value} {result.message}")
         roadmap = result.value
         meta = {
+            "params": params.to_json(),
             "nodes": len(roadmap.nodes),
             "edges": len(roadmap.edges),
             "build_seconds": time.perf_counter() - clock,

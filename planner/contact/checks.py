@@ -81,30 +81,51 @@ def make_contact(ctx: ContactContext, limb: str, pose: FloatArray, surface: int)
     return LimbContact(limb, pose, pts, normal, float(spec.mu), int(surface))
 
 
+def contacts_key(contacts: Sequence[LimbContact]) -> tuple[Any, ...]:
+    """A hashable key of the geometry of ``contacts``."""
+    return tuple((c.points.tobytes(), c.normal.tobytes(), c.mu) for c in contacts)
+
+
 def phase_of(ctx: ContactContext, contacts: Sequence[LimbContact]) -> ContactPhase:
-    """The trajectory contact phase of ``contacts`` (mass of the character)."""
-    return ContactPhase(
-        [Contact(c.points, c.normal, c.mu) for c in contacts], float(ctx.character.mass)
-    )
+    """The trajectory contact phase of ``contacts`` (mass of the character), memoised."""
+
+    def make() -> ContactPhase:
+        return ContactPhase(
+            [Contact(c.points, c.normal, c.mu) for c in contacts], float(ctx.character.mass)
+        )
+
+    phase: ContactPhase = ctx.cached(("phase", contacts_key(contacts)), make)
+    return phase
 
 
 def kinematics_of(ctx: ContactContext, contacts: Sequence[LimbContact]) -> Halfspaces:
-    """World ``K c <= k`` of the COM for the effectors of ``contacts`` (Eq. 4)."""
+    """World ``K c <= k`` of the COM for the effectors of ``contacts`` (Eq. 4), memoised."""
     if not contacts:
         return Halfspaces(np.zeros((0, 3)), np.zeros(0))
-    return kinematic_polytope(
-        [
-            EffectorConstraint(ctx.com_local[c.limb], c.placement[:3, :3], c.placement[:3, 3])
-            for c in contacts
-        ]
-    )
+
+    def make() -> Halfspaces:
+        return kinematic_polytope(
+            [
+                EffectorConstraint(ctx.com_local[c.limb], c.placement[:3, :3], c.placement[:3, 3])
+                for c in contacts
+            ]
+        )
+
+    key = ("kin", tuple((c.limb, c.placement.tobytes()) for c in contacts))
+    out: Halfspaces = ctx.cached(key, make)
+    return out
 
 
 def shrunk_equilibrium(ctx: ContactContext, contacts: Sequence[LimbContact]) -> Halfspaces:
-    """The static-equilibrium prism of ``contacts`` shrunk by ``params.com_shrink``."""
-    eq = equilibrium_halfspaces(phase_of(ctx, contacts))
-    norms = np.linalg.norm(eq.A, axis=1)
-    return Halfspaces(eq.A, eq.b - ctx.params.com_shrink * norms)
+    """The static-equilibrium prism of ``contacts`` shrunk by ``params.com_shrink`` (memoised)."""
+
+    def make() -> Halfspaces:
+        eq = equilibrium_halfspaces(phase_of(ctx, contacts))
+        norms = np.linalg.norm(eq.A, axis=1)
+        return Halfspaces(eq.A, eq.b - ctx.params.com_shrink * norms)
+
+    out: Halfspaces = ctx.cached(("shrunk", contacts_key(contacts)), make)
+    return out
 
 
 def balance_margin(ctx: ContactContext, contacts: Sequence[LimbContact], com: FloatArray) -> float:

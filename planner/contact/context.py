@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import enum
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -25,6 +25,7 @@ from trajectory import Halfspaces
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 Obstacle = tuple[Box | Capsule, FloatArray]
+_CACHE_SIZE = 512
 
 
 class FailureReason(enum.Enum):
@@ -99,6 +100,17 @@ class ContactContext:
     obstacle_geometry: tuple[tuple[Any, Any, FloatArray, float], ...] = field(
         default=(), repr=False
     )
+    cache: dict[Any, Any] = field(default_factory=dict, repr=False)
+
+    def cached(self, key: Any, make: Callable[[], Any]) -> Any:
+        """Memoise ``make()`` under ``key`` (bounded; cleared when full)."""
+        hit = self.cache.get(key)
+        if hit is None:
+            if len(self.cache) > _CACHE_SIZE:
+                self.cache.clear()
+            hit = make()
+            self.cache[key] = hit
+        return hit
 
     @property
     def model(self) -> Any:
@@ -122,6 +134,7 @@ class ContactContext:
             self.params,
             (*self.obstacles, *obstacles),
             world=self.base_world,
+            cache=self.cache,
         )
 
 
@@ -133,9 +146,11 @@ def make_context(
     obstacles: Sequence[Obstacle] = (),
     *,
     world: CollisionWorld | None = None,
+    cache: dict[Any, Any] | None = None,
 ) -> ContactContext:
     """A context over ``scene`` (or ``world``) with ``obstacles`` ((shape, (4, 4) world pose)
-    pairs) added."""
+    pairs) added. ``cache`` shares memoised contact data with another context of the same
+    scene, character and params."""
     p = params or ContactParams()
     base = scene.collision if world is None else world
     full = base.with_obstacles(list(obstacles)) if obstacles else base
@@ -160,6 +175,7 @@ def make_context(
         base,
         tuple(obstacles),
         tuple(_obstacle_geometry(shape, pose) for shape, pose in obstacles),
+        {} if cache is None else cache,
     )
 
 

@@ -190,17 +190,37 @@ def maintain(
     return ContactState(np.array(result.q), tuple(kept)), tuple(lost)
 
 
+def _cached_point(
+    ctx: ContactContext, sid: int, desired: FloatArray, radius: float
+) -> FloatArray | None:
+    """:func:`_point_on` memoised on the surface and ``desired`` rounded to 1 cm."""
+    key = ("point", sid, radius, tuple(np.round(desired, 2).tolist()))
+    surface = ctx.scene.surfaces[sid]
+    boxed: tuple[FloatArray | None] = ctx.cached(
+        key, lambda: (_point_on(surface, desired, radius),)
+    )
+    return boxed[0]
+
+
 def _point_on(surface: Surface, desired: FloatArray, radius: float) -> FloatArray | None:
-    """A point of ``surface`` near ``desired`` (3,) with a disc of ``radius`` inside it."""
+    """A point of ``surface`` near ``desired`` (3,) with a disc of ``radius`` inside it: the
+    closest point moved toward the centroid in quarter steps until the disc fits."""
     closest = surface.closest_point(desired[None])[0]
     angles = np.linspace(0.0, 2 * np.pi, 8, endpoint=False)
-    ring = np.stack([np.cos(angles), np.sin(angles)], axis=1) * radius
-    for k in (0.0, 0.25, 0.5, 0.75, 1.0):
-        p = closest + k * (surface.centroid - closest)
-        coords = surface.to_plane(p[None])[0] + ring
-        if bool(np.all(surface.contains_projection(surface.from_plane(coords)))):
-            return np.asarray(surface.closest_point(p[None])[0], dtype=np.float64)
-    return None
+    ring = np.stack([np.cos(angles), np.sin(angles)], axis=1) * radius  # (8, 2)
+    steps = np.array([0.0, 0.25, 0.5, 0.75, 1.0])
+    centres = closest + steps[:, None] * (surface.centroid - closest)  # (5, 3)
+    coords = surface.to_plane(centres)[:, None, :] + ring[None]  # (5, 8, 2)
+    inside = surface.contains_projection(surface.from_plane(coords.reshape(-1, 2)))
+    fits = np.flatnonzero(inside.reshape(len(steps), -1).all(axis=1))
+    if len(fits) == 0:
+        return None
+    p = centres[int(fits[0])]
+    if surface.flatness > 1e-9:
+        p = surface.closest_point(p[None])[0]
+    out = np.array(p, dtype=np.float64)
+    out.flags.writeable = False
+    return out
 
 
 _BOUNDS: dict[int, tuple[Surface, float]] = {}
@@ -264,8 +284,7 @@ def _candidates(
     order = order[keep[order]][: 2 * ctx.params.max_candidates + 2]
     out: list[_Candidate] = []
     for sid in ids[order].tolist():
-        surface = ctx.scene.surfaces[sid]
-        point = _point_on(surface, desired, radius)
+        point = _cached_point(ctx, sid, desired, radius)
         if point is None:
             continue
         if np.linalg.norm(point - base) > reach:

@@ -1,9 +1,15 @@
-"""The motion of one contact change: contact phases, a 2PAC COM curve and whole-body keyframes.
+"""The motion of one contact change: contact phases, a COM curve and whole-body keyframes.
 
-2PAC sections 6-7.2: two phases (before, after) with the kinematic COM polytopes of their
-effectors; keyframes by IK following the COM curve while holding the stance contacts and
-moving the swing effector along an arc. A keyframe colliding with the scene triggers one
-retry with a higher swing arc (local collision handling within a small budget).
+Two phases (before, after). The COM moves rest-to-rest (quintic, peak acceleration bounded)
+while the larger contact set holds it, to the new state's COM, which is a 2PAC transition
+point (in equilibrium of the smaller set with the robustness margin and in both kinematic
+COM polytopes, Eq. 5-6); the swing happens with the COM at rest, so every phase passes the
+dynamic check of Eq. 1. Keyframes follow the COM by IK (2PAC section 7.2) holding the stance
+contacts and moving the swing effector along an arc; outside the swing IK runs every
+``_STRIDE`` keyframes and the rest are interpolated on the configuration manifold (any whose
+stance slips more than 2 mm is re-solved). Local collision handling: a colliding keyframe
+sequence is recomputed with a higher swing arc (colliding contact postures are re-sampled
+earlier, in ``generation.create_contact``).
 """
 
 from __future__ import annotations
@@ -13,6 +19,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 from numpy.typing import NDArray
 
 from planner.contact.checks import (
@@ -40,7 +47,8 @@ _ACC_FEW = 0.2  # m/s^2, peak COM acceleration over the smaller contact set (cre
 _ACC_MANY = 0.2  # m/s^2, peak COM acceleration over the larger contact set (break)
 _SETTLE = 0.1  # s, the short phase without swing
 _N_CHECKS = 5  # dynamic checks per phase
-_FULL_CHECK_STRIDE = 3  # whole-body collision check every this many keyframes
+_STRIDE = 5  # outside the swing, IK every _STRIDE keyframes, interpolated in between
+_FULL_CHECK_STRIDE = 5  # whole-body collision check every this many keyframes
 _REPAIR_TOL = 2e-3  # m, keyframes whose stance slips more are re-solved
 
 
@@ -134,29 +142,34 @@ def step_motion(
                 swing = _positions(arc) if spec.contact == "point" else arc
                 frame = spec.frame_id
             kf_times = keyframe_times(t0, t1, rate)
+            stride = 1 if j == swing_phase else _STRIDE
+            knots = kf_times if stride == 1 else keyframe_times(t0, t1, rate / stride)
             track = track_com(
                 ctx.model,
                 q,
-                (kf_times, com_samples(kf_times)),
+                (knots, com_samples(knots)),
                 stance=hold_tasks(stances[j], ctx),
                 swing_frame=frame,
                 swing=swing,
                 reference=after.q,
-                rate=rate,
+                rate=rate / stride,
                 data=ctx.pin_data,
                 max_iterations=12,
             )
             if ts:  # the boundary keyframe belongs to the later phase
                 qs.pop()
                 ts.pop()
-            configs = [np.array(c) for c in track.configurations]
             stance = stances[j]
-            for i in np.flatnonzero(track.contact_errors > _REPAIR_TOL).tolist():
-                configs[i] = _repair(ctx, configs[i], stance, com_at(float(track.times[i])))
+            configs = _resample(ctx, track.times, track.configurations, kf_times)
+            for i, qq in enumerate(configs):
+                error = hold_error(ctx, qq, stance)
+                if error > _REPAIR_TOL:
+                    configs[i] = _repair(ctx, qq, stance, com_at(float(kf_times[i])))
+                    error = hold_error(ctx, configs[i], stance)
+                worst_hold = max(worst_hold, error)
+            track_times = kf_times
             qs.extend(configs)
-            ts.extend(float(t) for t in track.times)
-            for qq in configs:
-                worst_hold = max(worst_hold, hold_error(ctx, qq, stance))
+            ts.extend(float(t) for t in track_times)
             q = np.array(configs[-1])
         qs[0] = np.array(before.q)
         qs[-1] = np.array(after.q)
@@ -219,6 +232,22 @@ def _colliding(ctx: ContactContext, qs: list[FloatArray], swing: NDArray[np.int6
             hit = bool(scene_collisions(ctx, q, swing))
         hits += int(hit)
     return hits
+
+
+def _resample(
+    ctx: ContactContext, knots: FloatArray, configs: FloatArray, times: FloatArray
+) -> list[FloatArray]:
+    """Configurations at ``times`` (k,) interpolated on the configuration manifold between
+    those solved at ``knots`` (m,)."""
+    if len(knots) == len(times) and np.array_equal(knots, times):
+        return [np.array(c) for c in configs]
+    out: list[FloatArray] = []
+    for t in times.tolist():
+        i = int(np.clip(np.searchsorted(knots, t, side="right") - 1, 0, len(knots) - 2))
+        span = float(knots[i + 1] - knots[i])
+        u = 0.0 if span <= 0 else min(max((t - float(knots[i])) / span, 0.0), 1.0)
+        out.append(np.asarray(pin.interpolate(ctx.model, configs[i], configs[i + 1], u)))
+    return out
 
 
 def _repair(ctx: ContactContext, q: FloatArray, stance: Any, com: FloatArray) -> FloatArray:

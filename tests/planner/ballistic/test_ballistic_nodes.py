@@ -156,3 +156,68 @@ def test_deadline_builds_a_partial_roadmap_and_still_answers() -> None:
     assert result.value is not None
     assert len(result.value.roadmap.nodes) < 5000
     assert result.value.roadmap.stats["stopped"] == 1
+
+
+def test_section_matches_contact_region() -> None:
+    """The fast section (convex clip, and the general path) equals the scene's own
+    ``contact_region`` of the same reduced hull."""
+    from planner.ballistic.nodes import _section
+    from planner.scene import contact_region
+
+    scene, character, data = _setup("quadruped")
+    model = ReducedModel.build(scene, character, data)
+    rng = np.random.default_rng(3)
+    checked = 0
+    for _ in range(30):
+        pose = _standing(character, *rng.uniform([-1.0, -1.0, -0.2], [2.0, 1.0, 0.8]))
+        k = int(rng.integers(len(model.workspaces)))
+        hull = model.workspaces[k]
+        world = hull.vertices @ pose[:3, :3].T + pose[:3, 3]
+        for s_idx, surface in enumerate(model.surfaces):
+            expect = contact_region(hull, pose, surface)
+            fast = _section(world, model.edges[k], surface, model.convex[s_idx])
+            general = _section(world, model.edges[k], surface, None)
+            if expect is None:
+                assert fast is None and general is None
+                continue
+            checked += 1
+            for found in (fast, general):
+                assert found is not None
+                assert found[0] == pytest.approx(expect.area, rel=1e-6, abs=1e-9)
+                assert np.allclose(found[1], expect.centroid, atol=1e-6)
+    assert checked >= 10
+
+
+def test_root_pose_end_points() -> None:
+    from planner.poses import quaternion_to_matrix
+
+    scene, character, data = _setup("quadruped")
+    params = JumpParams(n_nodes=120)
+    first = plan_jumps(
+        scene,
+        character,
+        data,
+        np.array([-1.0, 0.0, 0.0]),
+        np.array([0.75, 0.0, 0.6]),
+        rng=np.random.default_rng(2),
+        params=params,
+    )
+    assert first.value is not None and first.value.jumps
+    path = first.value.path
+    pose = np.eye(4)
+    pose[:3, :3] = quaternion_to_matrix(path.orientations[0])
+    pose[:3, 3] = path.positions[0]
+    again = plan_jumps(
+        scene,
+        character,
+        data,
+        pose,
+        np.array([0.75, 0.0, 0.6]),
+        rng=np.random.default_rng(2),
+        roadmap=first.value.roadmap,
+        params=params,
+    )
+    assert again.status is PlanStatus.SOLVED
+    assert again.value is not None
+    assert np.allclose(again.value.jumps[0].takeoff.position, path.positions[0])
+    assert np.allclose(again.value.keyframes[0].q[3:7], path.orientations[0])

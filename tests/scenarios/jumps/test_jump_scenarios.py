@@ -161,7 +161,7 @@ def test_flight_limbs_mostly_free(name: str) -> None:
     flight = [k for k in plan.keyframes if not k.contacts]
     left = sum(bool(checker.colliding(k.q).any()) for k in flight)
     assert left == sum(j.limb_collisions for j in plan.jumps)
-    assert left <= 0.15 * len(flight)
+    assert left <= 0.05 * len(flight)
 
 
 def _same(a: JumpPlan, b: JumpPlan) -> None:
@@ -243,4 +243,17 @@ def test_roadmap_store(tmp_path: Path) -> None:
     assert again.load(rid).params == store.load(rid).params
     assert RoadmapStore.roadmap_id(scene, character, data, params, 60, 4) != rid
     assert not list(tmp_path.glob("*.tmp"))
+    assert store.params(rid) == params
+    # The endpoint's path: load roadmap and parameters by id, then plan on them.
+    result = plan_jumps(
+        scene,
+        character,
+        data,
+        scenario.end("start"),
+        scenario.end("goal"),
+        rng=np.random.default_rng(0),
+        roadmap=store.load(rid),
+        params=store.params(rid),
+    )
+    assert result.status in (PlanStatus.SOLVED, PlanStatus.INFEASIBLE)
     assert store.info("0" * 24) is None

@@ -1,0 +1,36 @@
+"""The interactive one-step mode (the Twister game): make or break one contact."""
+
+from __future__ import annotations
+
+import secrets
+from typing import Any
+
+from fastapi import APIRouter, Request
+
+from service import compute
+from service.schemas import ErrorBody, TwisterStepRequest, TwisterStepResponse
+
+router = APIRouter(prefix="/v1/twister", tags=["twister"])
+_ERRORS: dict[int | str, dict[str, Any]] = {
+    404: {"model": ErrorBody, "description": "unknown character or scene"},
+    422: {"model": ErrorBody, "description": "invalid request"},
+    504: {"model": ErrorBody, "description": "the worker did not answer in time"},
+}
+GRACE_S = 15.0
+
+
+@router.post("/step", responses=_ERRORS)
+async def twister_step(body: TwisterStepRequest, request: Request) -> TwisterStepResponse:
+    """One move: ``create`` or ``break`` a limb's contact, or ``auto`` (the game picks).
+
+    A move that cannot be made answers 200 with status INFEASIBLE and a ``failure`` saying
+    why (nothing reachable, not balanced, collision); the state is then unchanged.
+    """
+    seed = body.seed if body.seed is not None else secrets.randbits(63)
+    answer = await request.app.state.pool.run(
+        compute.run_twister_step,
+        body.model_dump_json(),
+        seed,
+        timeout_s=body.time_budget_s + GRACE_S,
+    )
+    return TwisterStepResponse.model_validate(answer)
