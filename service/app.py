@@ -10,7 +10,7 @@ from fastapi import FastAPI
 
 from service import __version__
 from service.errors import install_error_handlers
-from service.routes import characters, health, plans, scenes, twister
+from service.routes import characters, health, jumps, plans, scenes, twister
 from service.settings import Settings, get_settings
 from service.workers import WorkerPool, registry_for
 
@@ -26,7 +26,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         registry = registry_for(settings)
         registry.preload()
         app.state.registry = registry
+        settings.roadmaps_path.mkdir(parents=True, exist_ok=True)
         app.state.pool = WorkerPool(settings)
+        app.state.roadmap_jobs = {}
         log.info("gecko ready: %d characters", len(registry.characters))
         try:
             yield
@@ -46,4 +48,5 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(scenes.router)
     app.include_router(plans.router)
     app.include_router(twister.router)
+    app.include_router(jumps.router)
     return app

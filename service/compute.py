@@ -7,13 +7,19 @@ Errors the client can fix are raised as :class:`~service.errors.ApiError` (pickl
 
 from __future__ import annotations
 
+import json
+import os
+import tempfile
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from planner.ballistic.planner import JumpEnd, JumpParams, RoadmapStore, plan_jumps
+from planner.ballistic.roadmap import RoadmapParams
 from planner.contact.checks import effector_pose, make_contact
 from planner.contact.context import ContactContext, ContactParams, make_context
 from planner.contact.one_step import StepAction, twister_step
@@ -24,10 +30,11 @@ from planner.contact.state import ContactState
 from planner.contact.surroundings import character_obstacles, with_surfaces
 from planner.poses import normalize_quaternion, pose_matrix, quaternion_to_matrix
 from planner.scene import Scene
+from planner.termination import Deadline
 from service import convert, schemas
 from service.errors import ApiError, not_found
-from service.registry import CharacterEntry
-from service.workers import worker_registry
+from service.registry import CharacterEntry, Registry
+from service.workers import worker_registry, worker_settings
 
 
 def character_entry(character_id: str) -> CharacterEntry:
@@ -197,5 +204,161 @@ def run_twister_step(request_json: str, seed: int) -> dict[str, Any]:
         failure=failure,
         report=report,
         timings={**clock.timings, **{f"step.{k}": v for k, v in result.timings.items()}},
+    )
+    return response.model_dump(mode="json")
+
+
+# -- jumps --------------------------------------------------------------------------------
+
+
+def jump_params(request: schemas.RoadmapRequest | schemas.JumpRequest) -> JumpParams:
+    """Jump-planner parameters from a request's friction, speed bounds and roadmap size."""
+    return JumpParams(
+        roadmap=RoadmapParams(
+            v0max=request.vmax_takeoff, vimpmax=request.vmax_landing, max_gap=0.1, lazy=True
+        ),
+        n_nodes=request.nodes,
+        mu=request.mu,
+        rate=getattr(request, "rate", 30.0),
+    )
+
+
+def roadmap_id(request: schemas.RoadmapRequest, registry: Registry) -> str:
+    """The content id of the roadmap a request builds (same inputs, same id)."""
+    entry = registry.get_character(request.character)
+    if entry is None:
+        raise not_found("character", request.character, "character")
+    scene = registry.get_scene(request.scene)
+    if scene is None:
+        raise not_found("scene", request.scene, "scene")
+    params = jump_params(request)
+    return RoadmapStore.roadmap_id(
+        scene, entry.character, entry.data, params, request.nodes, request.seed
+    )
+
+
+def status_path(directory: Path, rid: str) -> Path:
+    return directory / f"{rid}.status.json"
+
+
+def write_status(directory: Path, rid: str, **status: Any) -> None:
+    """Atomically replace a roadmap's build status file."""
+    target = status_path(directory, rid)
+    fd, tmp = tempfile.mkstemp(dir=directory, prefix=".tmp-", suffix=".json")
+    with os.fdopen(fd, "w") as handle:
+        json.dump({"id": rid, **status}, handle)
+    os.replace(tmp, target)
+
+
+def build_roadmap_job(request_json: str, rid: str) -> None:
+    """Build and store a roadmap in a worker, writing its progress to its status file."""
+    request = schemas.RoadmapRequest.model_validate_json(request_json)
+    directory = worker_settings().roadmaps_path
+    started = time.perf_counter()
+    last = [-1.0]
+
+    def progress(fraction: float) -> None:
+        if fraction - last[0] >= 0.02 or fraction >= 1.0:
+            last[0] = fraction
+            write_status(
+                directory,
+                rid,
+                status="running",
+                progress=min(1.0, max(0.0, fraction)),
+                seconds=time.perf_counter() - started,
+            )
+
+    try:
+        entry = character_entry(request.character)
+        scene = scene_by_id(request.scene)
+        write_status(directory, rid, status="running", progress=0.0, seconds=0.0)
+        RoadmapStore(directory).build(
+            scene,
+            entry.character,
+            entry.data,
+            jump_params(request),
+            request.nodes,
+            request.seed,
+            progress=progress,
+        )
+        status_path(directory, rid).unlink(missing_ok=True)
+    except Exception as exc:  # recorded for GET /v1/roadmaps/{id}
+        write_status(
+            directory,
+            rid,
+            status="failed",
+            progress=last[0] if last[0] > 0 else 0.0,
+            message=f"{type(exc).__name__}: {exc}",
+            seconds=time.perf_counter() - started,
+        )
+
+
+def _jump_endpoint(endpoint: schemas.EndpointIn) -> np.ndarray:
+    if endpoint.stand_at is not None:
+        return np.asarray(endpoint.stand_at, dtype=np.float64)
+    return _endpoint(endpoint).root_pose  # type: ignore[return-value]
+
+
+def _jump_end(end: JumpEnd) -> schemas.JumpEndOut:
+    return schemas.JumpEndOut(
+        position=convert.vec3(end.position),
+        velocity=convert.vec3(end.velocity),
+        contacts=[
+            schemas.JumpContactOut(
+                limb=c.limb,
+                point=convert.vec3(c.point),
+                normal=convert.vec3(c.normal),
+                mu=float(c.mu),
+            )
+            for c in end.contacts
+        ],
+    )
+
+
+def run_jumps(request_json: str, seed: int) -> dict[str, Any]:
+    """``POST /v1/jumps`` in a worker: the response as a JSON-ready dict."""
+    request = schemas.JumpRequest.model_validate_json(request_json)
+    entry = character_entry(request.character)
+    scene = scene_by_id(request.scene)
+    params = jump_params(request)
+    roadmap = None
+    if request.roadmap is not None:
+        store = RoadmapStore(worker_settings().roadmaps_path)
+        if not request.roadmap.isalnum() or not store.exists(request.roadmap):
+            raise not_found("roadmap", request.roadmap, "roadmap")
+        roadmap = store.load(request.roadmap)
+        params = store.params(request.roadmap)
+    try:
+        result = plan_jumps(
+            scene,
+            entry.character,
+            entry.data,
+            _jump_endpoint(request.start),
+            _jump_endpoint(request.goal),
+            rng=np.random.default_rng(seed),
+            roadmap=roadmap,
+            params=params,
+            until=Deadline(request.time_budget_s),
+        )
+    except ValueError as exc:  # a roadmap built for another scene or character
+        raise invalid(str(exc), "roadmap") from exc
+    plan = result.value
+    character = entry.character
+    response = schemas.JumpResponse(
+        status=result.status.value,
+        seed=seed,
+        message=result.message,
+        roadmap=request.roadmap,
+        jumps=[
+            schemas.JumpOut(
+                takeoff=_jump_end(j.takeoff),
+                landing=_jump_end(j.landing),
+                apex=convert.vec3(j.apex),
+                duration=float(j.duration),
+            )
+            for j in (plan.jumps if plan else ())
+        ],
+        keyframes=[convert.keyframe_out(character, k) for k in (plan.keyframes if plan else ())],
+        timings=dict(plan.timings) if plan else {},
     )
     return response.model_dump(mode="json")

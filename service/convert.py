@@ -15,8 +15,12 @@ from service import schemas
 from service.errors import ApiError
 
 
-def _vec(values: np.ndarray) -> tuple[float, float, float]:
+def vec3(values: np.ndarray) -> tuple[float, float, float]:
+    """A (3,) array as a JSON triple of floats."""
     return (float(values[0]), float(values[1]), float(values[2]))
+
+
+_vec = vec3
 
 
 def configuration_from_q(character: Character, q: np.ndarray) -> schemas.Configuration:

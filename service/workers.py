@@ -9,7 +9,7 @@ from __future__ import annotations
 import asyncio
 import multiprocessing
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, TypeVar
 
@@ -99,9 +99,9 @@ class WorkerPool:
         except TimeoutError as exc:
             raise ApiError(504, "timeout", f"no answer within {timeout_s:.1f} s", None) from exc
 
-    def submit(self, function: Callable[..., Any], *args: Any) -> None:
-        """Start background work (e.g. a roadmap build); its result is recorded by itself."""
-        self._executor.submit(function, *args)
+    def submit(self, function: Callable[..., T], *args: Any) -> Future[T]:
+        """Start background work (e.g. a roadmap build); it records its own result."""
+        return self._executor.submit(function, *args)
 
     def shutdown(self) -> None:
         self._executor.shutdown(wait=False, cancel_futures=True)

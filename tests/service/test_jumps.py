@@ -1,0 +1,157 @@
+"""Roadmaps and jumps over HTTP: background build with progress, persistence, jump plans."""
+
+from __future__ import annotations
+
+import asyncio
+from typing import Any
+
+import httpx
+import numpy as np
+import pytest
+from asgi_lifespan import LifespanManager
+
+from service.app import create_app
+from service.settings import Settings
+
+pytestmark = pytest.mark.anyio
+
+ROADMAP = {
+    "character": "quadruped",
+    "scene": "gaps",
+    "mu": 1.0,
+    "vmax_takeoff": 6.0,
+    "vmax_landing": 8.0,
+    "nodes": 120,
+    "seed": 5,
+}
+START = {"stand_at": [0.75, 0.0, 0.6]}
+GOAL = {"stand_at": [8.25, 0.0, 1.0]}
+
+
+async def _wait_done(client: httpx.AsyncClient, rid: str) -> dict[str, Any]:
+    for _ in range(600):
+        status = (await client.get(f"/v1/roadmaps/{rid}")).json()
+        assert status["status"] in {"queued", "running", "done"}, status
+        assert 0.0 <= status["progress"] <= 1.0
+        if status["status"] == "done":
+            return dict(status)
+        await asyncio.sleep(0.2)
+    raise AssertionError("roadmap build did not finish in 120 s")
+
+
+def _check_jump(jump: dict[str, Any]) -> None:
+    p0 = np.array(jump["takeoff"]["position"])
+    v0 = np.array(jump["takeoff"]["velocity"])
+    p1 = np.array(jump["landing"]["position"])
+    t = jump["duration"]
+    reached = p0 + v0 * t + 0.5 * np.array([0.0, 0.0, -9.81]) * t * t
+    assert np.linalg.norm(reached - p1) < 1e-3
+    assert jump["takeoff"]["contacts"] and jump["landing"]["contacts"]
+
+
+async def test_roadmap_build_persist_and_jump(
+    client: httpx.AsyncClient, settings: Settings
+) -> None:
+    response = await client.post("/v1/roadmaps", json=ROADMAP)
+    assert response.status_code in (200, 202), response.text
+    rid = response.json()["id"]
+    done = await _wait_done(client, rid)
+    assert done["nodes"] > 0
+    again = await client.post("/v1/roadmaps", json=ROADMAP)
+    assert again.status_code == 200
+    assert again.json()["id"] == rid
+
+    request = {
+        "character": "quadruped",
+        "scene": "gaps",
+        "start": START,
+        "goal": GOAL,
+        "roadmap": rid,
+        "seed": 1,
+        "time_budget_s": 30,
+    }
+    first = await client.post("/v1/jumps", json=request, timeout=120)
+    assert first.status_code == 200, first.text
+    body = first.json()
+    assert body["status"] == "SOLVED", body["message"]
+    assert body["jumps"]
+    for jump in body["jumps"]:
+        _check_jump(jump)
+    times = [k["t"] for k in body["keyframes"]]
+    assert times == sorted(times) and len(times) > 5
+
+    app = create_app(settings)  # a restart: the finished roadmap is still there
+    async with (
+        LifespanManager(app),
+        httpx.AsyncClient(transport=httpx.ASGITransport(app=app), base_url="http://g") as fresh,
+    ):
+        status = (await fresh.get(f"/v1/roadmaps/{rid}")).json()
+        assert status["status"] == "done"
+        replay = (await fresh.post("/v1/jumps", json=request, timeout=120)).json()
+    body.pop("timings")
+    replay.pop("timings")
+    assert replay == body
+
+
+async def test_jumps_without_roadmap(client: httpx.AsyncClient) -> None:
+    request = {
+        "character": "quadruped",
+        "scene": "gaps",
+        "start": START,
+        "goal": GOAL,
+        "nodes": 150,
+        "seed": 2,
+        "time_budget_s": 30,
+    }
+    response = await client.post("/v1/jumps", json=request, timeout=120)
+    assert response.status_code == 200, response.text
+    body = response.json()
+    assert body["status"] in {"SOLVED", "INFEASIBLE", "TIMEOUT"}
+    for jump in body["jumps"]:
+        _check_jump(jump)
+
+
+@pytest.mark.parametrize(
+    ("path", "body", "status", "field"),
+    [
+        ("/v1/roadmaps", {**ROADMAP, "nodes": 10_001}, 422, "nodes"),
+        ("/v1/roadmaps", {**ROADMAP, "vmax_takeoff": 0}, 422, "vmax_takeoff"),
+        ("/v1/roadmaps", {**ROADMAP, "scene": "nowhere"}, 404, "scene"),
+        (
+            "/v1/jumps",
+            {
+                "character": "quadruped",
+                "scene": "gaps",
+                "start": START,
+                "goal": GOAL,
+                "roadmap": "0123abcd",
+            },
+            404,
+            "roadmap",
+        ),
+        (
+            "/v1/jumps",
+            {
+                "character": "quadruped",
+                "scene": "gaps",
+                "start": START,
+                "goal": GOAL,
+                "time_budget_s": 90,
+            },
+            422,
+            "time_budget_s",
+        ),
+    ],
+)
+async def test_bad_requests(
+    client: httpx.AsyncClient, path: str, body: dict[str, Any], status: int, field: str
+) -> None:
+    response = await client.post(path, json=body, timeout=60)
+    assert response.status_code == status, response.text
+    assert response.json()["error"]["field"].startswith(field)
+
+
+async def test_unknown_roadmap_is_404(client: httpx.AsyncClient) -> None:
+    response = await client.get("/v1/roadmaps/deadbeef")
+    assert response.status_code == 404
+    assert response.json()["error"]["field"] == "roadmap_id"
