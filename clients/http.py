@@ -54,3 +54,24 @@ class GeckoClient:
     async def upload_scene(self, mesh: bytes, fmt: str, name: str = "") -> dict[str, Any]:
         params = {"format": fmt, "name": name}
         return dict(_checked(await self.http.post("/v1/scenes", params=params, content=mesh)))
+
+    async def plan(self, request: dict[str, Any], timeout: float = 120.0) -> dict[str, Any]:
+        """``POST /v1/plans``."""
+        return dict(_checked(await self.http.post("/v1/plans", json=request, timeout=timeout)))
+
+    async def twister_step(self, request: dict[str, Any], timeout: float = 120.0) -> dict[str, Any]:
+        """``POST /v1/twister/step``."""
+        response = await self.http.post("/v1/twister/step", json=request, timeout=timeout)
+        return dict(_checked(response))
+
+    async def jumps(self, request: dict[str, Any], timeout: float = 120.0) -> dict[str, Any]:
+        """``POST /v1/jumps``."""
+        return dict(_checked(await self.http.post("/v1/jumps", json=request, timeout=timeout)))
+
+    async def build_roadmap(self, request: dict[str, Any]) -> dict[str, Any]:
+        """``POST /v1/roadmaps``: starts (or finds) a build; returns its status."""
+        return dict(_checked(await self.http.post("/v1/roadmaps", json=request)))
+
+    async def roadmap(self, roadmap_id: str) -> dict[str, Any]:
+        """``GET /v1/roadmaps/{id}``."""
+        return dict(_checked(await self.http.get(f"/v1/roadmaps/{roadmap_id}")))

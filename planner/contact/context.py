@@ -58,7 +58,8 @@ class ContactParams:
     kinds : surface kinds usable for contacts. reach_radius : m, database samples this close
         to a target count as reaching it with the root fixed. body_reach : m, how much
         further than the limb alone a whole-body motion may reach. max_seeds : database
-        postures tried per candidate (re-sampling a colliding limb).
+        postures tried per candidate (re-sampling a colliding limb). crouch_drops : m, COM
+        drops tried before a whole-body reach when the limb alone cannot reach a target.
     """
 
     margin: float = 1.0
@@ -71,8 +72,9 @@ class ContactParams:
     allowed_surfaces: tuple[int, ...] | None = None
     kinds: tuple[SurfaceKind, ...] = (SurfaceKind.SUPPORT,)
     reach_radius: float = 0.08
-    body_reach: float = 0.5
+    body_reach: float = 1.0
     max_seeds: int = 3
+    crouch_drops: tuple[float, ...] = (0.45,)
     ik_iterations: int = 150
 
 

@@ -364,17 +364,27 @@ def _projections(
         if res.success:
             yield np.array(res.q)
     com = com_of(ctx, state.q)
-    res = balance_ik(
-        ctx,
-        np.array(state.q),
-        state.contacts,
-        com,
-        extra=[_contact_task(ctx, limb, cand.point, normal)],
-        axes=(True, True, False),
-        moving=(limb,),
-    )
-    if res.residuals[len(state.contacts) + 1, 0] <= 1e-3 and _holds(ctx, res.q, state.contacts):
-        yield np.array(res.q)
+    starts = [np.array(state.q)]
+    drops = ctx.params.crouch_drops if len(cand.seeds) == 0 and state.contacts else ()
+    for k, drop in enumerate((0.0, *drops)):
+        if k > 0:  # lower the body first (COM straight down), then reach from there
+            crouch = balance_ik(ctx, np.array(state.q), state.contacts, com - [0.0, 0.0, drop])
+            if not _holds(ctx, crouch.q, state.contacts):
+                continue
+            starts.append(np.array(crouch.q))
+        res = balance_ik(
+            ctx,
+            starts[-1],
+            state.contacts,
+            com - [0.0, 0.0, drop],
+            extra=[_contact_task(ctx, limb, cand.point, normal)],
+            axes=(True, True, False),
+            moving=(limb,),
+        )
+        index = len(state.contacts) + 1
+        if res.residuals[index, 0] <= 1e-3 and _holds(ctx, res.q, state.contacts):
+            yield np.array(res.q)
+            return
 
 
 def _balanced_after_create(

@@ -51,8 +51,14 @@ class StepResult:
 
     ok : success. state : the new state (the input state on failure). action : the action
     performed ('create' or 'break'), limb : the limb moved (None on failure).
-    phases, com, keyframes : the motion (empty on failure). report : motion report and the
-    attempts made. failure : None on success. timings : seconds per stage.
+    phases, com, keyframes : the motion (empty on failure). failure : None on success.
+    timings : seconds, ``contacts``, ``motion``, ``total``.
+    report : ``attempts`` (list of {action, limb, ok, reason, candidates_tried, resampled})
+    always; on success also ``phases`` (per phase {phase, t0, t1, fraction_valid,
+    worst_violation [N]}: Eq. 1 at 5 points), ``transition`` ({point, margin [N],
+    kinematic_violation [m]}), ``transition_slack`` [m], ``quasi_static_feasible``,
+    ``max_hold_error`` [m], ``colliding_keyframes``, ``swing_lift`` [m], ``surface`` (created
+    contact's surface id, -1 for a break) and ``collisions_fixed``.
     """
 
     ok: bool
