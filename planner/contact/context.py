@@ -72,9 +72,9 @@ class ContactParams:
     allowed_surfaces: tuple[int, ...] | None = None
     kinds: tuple[SurfaceKind, ...] = (SurfaceKind.SUPPORT,)
     reach_radius: float = 0.08
-    body_reach: float = 1.0
+    body_reach: float = 0.5
     max_seeds: int = 3
-    crouch_drops: tuple[float, ...] = (0.45,)
+    crouch_drops: tuple[float, ...] = ()
     ik_iterations: int = 150
 
 

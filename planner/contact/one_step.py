@@ -7,7 +7,7 @@ return the new state with its COM curve and keyframes, or a structured failure.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 from planner.contact.context import ContactContext, FailureReason
 from planner.contact.generation import ContactAttempt, break_contact, create_contact
 from planner.contact.state import ContactState
-from planner.contact.step_motion import step_motion
+from planner.contact.step_motion import StepMotion, step_motion
 from planner.motion import ComSegment, Keyframe, Phase
 
 FloatArray = NDArray[np.float64]
@@ -127,39 +127,48 @@ def twister_step(
             return failed(FailureReason.INVALID_ACTION, "a limb is required", None)
         plan = [(action.kind, action.limb)]
     last: ContactAttempt | None = None
-    t_contacts = time.perf_counter()
-    success: tuple[str, ContactAttempt] | None = None
+    best: tuple[str, ContactAttempt, StepMotion] | None = None
+    t_contacts = t_motion = 0.0
     for kind, limb in plan:
         if until is not None and time.perf_counter() > until and last is not None:
             break
+        t0 = time.perf_counter()
         attempt = _attempt(ctx, state, kind, limb, action, rng)
-        attempts.append(
-            {
-                "action": kind,
-                "limb": limb,
-                "ok": attempt.ok,
-                "reason": None if attempt.reason is None else attempt.reason.value,
-                "candidates_tried": attempt.candidates_tried,
-                "resampled": attempt.resampled,
-            }
-        )
+        t_contacts += time.perf_counter() - t0
+        entry: dict[str, Any] = {
+            "action": kind,
+            "limb": limb,
+            "ok": attempt.ok,
+            "reason": None if attempt.reason is None else attempt.reason.value,
+            "candidates_tried": attempt.candidates_tried,
+            "resampled": attempt.resampled,
+        }
+        attempts.append(entry)
         last = attempt
-        if attempt.ok:
-            success = (kind, attempt)
+        if not attempt.ok:
+            continue
+        t0 = time.perf_counter()
+        try:
+            motion = step_motion(ctx, state, attempt.state, attempt.limb, rate=rate)
+        except (ValueError, np.linalg.LinAlgError) as error:  # defensive: report, never raise
+            t_motion += time.perf_counter() - t0
+            entry.update(ok=False, reason=FailureReason.MOTION_FAILED.value, message=str(error))
+            last = replace(attempt, ok=False, reason=FailureReason.MOTION_FAILED)
+            continue
+        t_motion += time.perf_counter() - t0
+        colliding = int(motion.report["colliding_keyframes"])
+        if best is None or colliding < int(best[2].report["colliding_keyframes"]):
+            best = (kind, attempt, motion)
+        if colliding == 0:
             break
-    timings["contacts"] = time.perf_counter() - t_contacts
-    if success is None:
+        entry["colliding_keyframes"] = colliding  # auto: try another limb
+    timings["contacts"] = t_contacts
+    timings["motion"] = t_motion
+    if best is None:
         assert last is not None
         reason = last.reason or FailureReason.NOTHING_REACHABLE
         return failed(reason, last.message, last.limb)
-    kind, attempt = success
-    t_motion = time.perf_counter()
-    try:
-        motion = step_motion(ctx, state, attempt.state, attempt.limb, rate=rate)
-    except (ValueError, np.linalg.LinAlgError) as error:  # defensive: report, never raise
-        timings["motion"] = time.perf_counter() - t_motion
-        return failed(FailureReason.MOTION_FAILED, str(error), attempt.limb)
-    timings["motion"] = time.perf_counter() - t_motion
+    kind, attempt, motion = best
     timings["total"] = time.perf_counter() - t_start
     report = dict(motion.report)
     report["attempts"] = attempts

@@ -222,15 +222,13 @@ def limb_geometries(ctx: ContactContext, limb: str) -> NDArray[np.int64]:
 
 
 def _colliding(ctx: ContactContext, qs: list[FloatArray], swing: NDArray[np.int64]) -> int:
-    """Keyframes (interior) with a collision: the swing limb's shapes at every keyframe,
-    the whole body (scene and self) every ``_FULL_CHECK_STRIDE`` keyframes."""
+    """Interior keyframes with a collision: self-collision and the swing limb's shapes
+    against the scene at every keyframe, the whole body against the scene every
+    ``_FULL_CHECK_STRIDE`` keyframes."""
     hits = 0
     for i, q in enumerate(qs[1:-1], start=1):
-        if i % _FULL_CHECK_STRIDE == 0:
-            hit = bool(scene_collisions(ctx, q)) or self_collides(ctx, q)
-        else:
-            hit = bool(scene_collisions(ctx, q, swing))
-        hits += int(hit)
+        only = None if i % _FULL_CHECK_STRIDE == 0 else swing
+        hits += int(self_collides(ctx, q) or bool(scene_collisions(ctx, q, only)))
     return hits
 
 

@@ -42,12 +42,14 @@ def discs(sc: Scene) -> dict[tuple[float, float], int]:
     }
 
 
-def context(character_id: str, scene_id: str, twister: bool = True) -> ContactContext:
+def context(
+    character_id: str, scene_id: str, twister: bool = True, **params: Any
+) -> ContactContext:
     sc = scene(scene_id)
     ch = get_character(character_id)
     data = load_offline_data(ch, gecko_cache_dir())
     allowed = tuple(discs(sc).values()) if twister else None
-    return make_context(sc, ch, data, ContactParams(allowed_surfaces=allowed))
+    return make_context(sc, ch, data, ContactParams(allowed_surfaces=allowed, **params))
 
 
 def start_state(ctx: ContactContext, root_xy: Any, contacts: dict[str, Any]) -> ContactState:
@@ -60,6 +62,11 @@ def start_state(ctx: ContactContext, root_xy: Any, contacts: dict[str, Any]) -> 
     return attempt.state
 
 
+def _params(raw: dict[str, Any]) -> dict[str, Any]:
+    """ContactParams overrides from a scenario (lists become tuples)."""
+    return {k: tuple(v) if isinstance(v, list) else v for k, v in raw.items()}
+
+
 @dataclass
 class Move:
     player: int
@@ -70,7 +77,10 @@ class Move:
 
 def play(path: Path) -> list[Move]:
     spec = json.loads(path.read_text())
-    ctxs = [context(p["character"], spec["scene"]) for p in spec["players"]]
+    ctxs = [
+        context(p["character"], spec["scene"], **_params(p.get("params", {})))
+        for p in spec["players"]
+    ]
     states = [
         start_state(c, p["root_xy"], p["contacts"])
         for c, p in zip(ctxs, spec["players"], strict=True)
