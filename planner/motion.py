@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.contact.state import LimbContact
+if TYPE_CHECKING:  # annotation only: planner.contact imports this module
+    from planner.contact.state import LimbContact
 
 FloatArray = NDArray[np.float64]
 

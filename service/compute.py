@@ -20,14 +20,12 @@ import numpy as np
 
 from planner.ballistic.planner import JumpEnd, JumpParams, RoadmapStore, plan_jumps
 from planner.ballistic.roadmap import RoadmapParams
-from planner.contact.checks import effector_pose, make_contact
-from planner.contact.context import ContactContext, ContactParams, make_context
+from planner.contact.context import ContactParams, character_obstacles, make_context
+from planner.contact.generation import state_from_configuration
 from planner.contact.one_step import StepAction, twister_step
 from planner.contact.planner import Endpoint, PlanOptions, plan_contact_motion
 from planner.contact.sequence import SequenceParams
 from planner.contact.standing import standing_state
-from planner.contact.state import ContactState
-from planner.contact.surroundings import character_obstacles, with_surfaces
 from planner.poses import normalize_quaternion, pose_matrix, quaternion_to_matrix
 from planner.scene import Scene
 from planner.termination import Deadline
@@ -124,20 +122,6 @@ def run_plan(request_json: str, seed: int) -> dict[str, Any]:
     return response.model_dump(mode="json")
 
 
-def _planner_contacts(ctx: ContactContext, state: ContactState) -> ContactState:
-    """Rebuild a request's contacts exactly as the planner builds them (one constructor)."""
-    contacts = []
-    for index, contact in enumerate(state.contacts):
-        if contact.surface < 0 or contact.surface >= len(ctx.scene.surfaces):
-            raise invalid(
-                f"the {contact.limb} contact is not on a surface of scene '{ctx.scene.id}'",
-                f"state.contacts.{index}",
-            )
-        pose = effector_pose(ctx, contact.limb, state.q)
-        contacts.append(make_contact(ctx, contact.limb, pose, contact.surface))
-    return ContactState(state.q, tuple(contacts))
-
-
 def run_twister_step(request_json: str, seed: int) -> dict[str, Any]:
     """``POST /v1/twister/step`` in a worker: one contact change, as a JSON-ready dict."""
     request = schemas.TwisterStepRequest.model_validate_json(request_json)
@@ -148,16 +132,6 @@ def run_twister_step(request_json: str, seed: int) -> dict[str, Any]:
     rng = np.random.default_rng(seed)
     clock = Stopwatch()
     with clock.stage("state"):
-        if request.state is not None:
-            state = with_surfaces(
-                scene, convert.state_from_request(character, request.state, "state")
-            )
-        else:
-            assert request.stand_at is not None
-            standing = standing_state(scene, character, data, np.asarray(request.stand_at), rng=rng)
-            if not standing.status or standing.value is None:
-                raise invalid(f"no standing state there: {standing.message}", "stand_at")
-            state = standing.value
         obstacles = []
         for index, other in enumerate(request.others):
             other_entry = worker_registry().get_character(other.character)
@@ -167,14 +141,35 @@ def run_twister_step(request_json: str, seed: int) -> dict[str, Any]:
                 other_entry.character, other.configuration, f"others.{index}.configuration"
             )
             obstacles.extend(character_obstacles(other_entry.character, q_other))
+        params = ContactParams(
+            allowed_surfaces=None if request.surfaces is None else tuple(request.surfaces)
+        )
+        surface_count = len(scene.surfaces)
+        for index, surface in enumerate(request.surfaces or ()):
+            if surface >= surface_count:
+                raise invalid(f"scene has {surface_count} surfaces", f"surfaces.{index}")
+        ctx = make_context(scene, character, data, params, obstacles=obstacles)
+        if request.state is not None:
+            requested = convert.state_from_request(character, request.state, "state")
+            contacts = {c.limb: c.surface for c in request.state.contacts}
+            made = state_from_configuration(ctx, requested.q, contacts)
+            if not made.ok:
+                raise invalid(f"the state is not valid here: {made.message}", "state")
+            state = made.state
+        else:
+            assert request.stand_at is not None
+            standing = standing_state(scene, character, data, np.asarray(request.stand_at), rng=rng)
+            if not standing.status or standing.value is None:
+                raise invalid(f"no standing state there: {standing.message}", "stand_at")
+            contacts = {c.limb: c.surface for c in standing.value.contacts}
+            made = state_from_configuration(ctx, standing.value.q, contacts)
+            state = made.state if made.ok else standing.value
     limb_names = {limb.name for limb in character.limbs}
     if request.action.limb is not None and request.action.limb not in limb_names:
         raise invalid(
             f"unknown limb '{request.action.limb}'; expected one of {sorted(limb_names)}",
             "action.limb",
         )
-    ctx = make_context(scene, character, data, obstacles=obstacles)
-    state = _planner_contacts(ctx, state)
     action = StepAction(
         kind=request.action.kind,
         limb=request.action.limb,

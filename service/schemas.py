@@ -248,6 +248,11 @@ class TwisterStepRequest(BaseModel):
     stand_at: Point3 | None = Field(default=None, description="start standing at this point")
     action: StepActionIn
     others: list[OtherCharacterIn] = Field(default_factory=list, max_length=8)
+    surfaces: list[Annotated[int, Field(ge=0)]] | None = Field(
+        default=None,
+        max_length=10_000,
+        description="surface ids contacts may use (default: every Support surface)",
+    )
     seed: Seed | None = None
     time_budget_s: TimeBudget = 5.0
     rate: Rate = 30.0

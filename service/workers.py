@@ -7,7 +7,9 @@ service settings, so characters and scenes load once per process (from the on-di
 from __future__ import annotations
 
 import asyncio
+import logging
 import multiprocessing
+import os
 from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -18,6 +20,7 @@ from service.registry import Registry
 from service.settings import Settings
 
 T = TypeVar("T")
+log = logging.getLogger("gecko.workers")
 
 _WORKER_REGISTRY: Registry | None = None
 _WORKER_SETTINGS: Settings | None = None
@@ -66,6 +69,9 @@ class WorkerPool:
     """Runs picklable functions in worker processes; recreated if a worker dies."""
 
     def __init__(self, settings: Settings) -> None:
+        # One BLAS thread per worker: the matrices are small, and workers share the cores.
+        for variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+            os.environ.setdefault(variable, "1")
         self._settings = settings
         self._executor = self._new_executor()
 
@@ -93,6 +99,7 @@ class WorkerPool:
             future = loop.run_in_executor(self._executor, function, *args)
             return await asyncio.wait_for(future, timeout=timeout_s)
         except BrokenProcessPool as exc:
+            log.error("a planning worker died: %r", exc)
             self._executor.shutdown(wait=False, cancel_futures=True)
             self._executor = self._new_executor()
             raise ApiError(503, "worker_lost", "a planning worker died; retry", None) from exc
