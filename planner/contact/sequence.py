@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.contact.context import ContactContext
+from planner.contact.context import ContactContext, FailureReason
 from planner.contact.generation import break_contact, create_contact, maintain
 from planner.contact.state import ContactState
 from planner.kinematics import frame_placement
@@ -24,6 +24,7 @@ from planner.result import PlanResult, PlanStatus
 from planner.termination import Termination
 
 FloatArray = NDArray[np.float64]
+_STEP_FRACTIONS = (1.0, 0.66, 0.33)
 
 
 @dataclass(frozen=True, slots=True)
@@ -86,30 +87,39 @@ def contact_sequence(
     states: list[ContactState] = [start]
     current = start
     free_since = {limb: -1 for limb in ctx.limb_names() if start.contact(limb) is None}
+    index = 0
     stats: dict[str, float | int | str] = {"breaks": 0, "creations": 0, "root_samples": 0}
 
     def emit(state: ContactState, kind: str) -> None:
-        nonlocal current
+        # Whole-body IK may carry the root along the path: walk on from the nearest path
+        # sample ahead of us, never back.
+        nonlocal current, index
         current = state
         states.append(state)
         stats[kind] = int(stats[kind]) + 1
+        ahead = poses[index:, :3, 3]
+        index += int(np.argmin(np.linalg.norm(ahead - state.q[:3], axis=1)))
 
-    def try_create(index: int) -> bool:
-        target_pose = _along(poses, lengths, float(lengths[index]) + p.lookahead)
+    def try_create() -> bool:
+        # The longest step first: the limb's reference position at the root pose `lookahead`
+        # metres ahead, then shorter ones.
         for limb in sorted(free_since, key=free_since.__getitem__):
-            look = target_pose[:3, :3] @ offsets[limb] + target_pose[:3, 3]
-            attempt = create_contact(ctx, current, limb, rng=rng, lookahead=look)
-            if attempt.ok:
-                free_since.pop(limb)
-                emit(attempt.state, "creations")
-                return True
+            for fraction in _STEP_FRACTIONS:
+                ahead = _along(poses, lengths, float(lengths[index]) + fraction * p.lookahead)
+                target = ahead[:3, :3] @ offsets[limb] + ahead[:3, 3]
+                attempt = create_contact(ctx, current, limb, rng=rng, target=target)
+                if attempt.ok:
+                    free_since.pop(limb)
+                    emit(attempt.state, "creations")
+                    return True
+                if attempt.reason is FailureReason.NOTHING_REACHABLE and fraction == 1.0:
+                    break  # no surface near this limb at all: shorter steps will not help
         return False
 
     def result(status: PlanStatus, message: str = "") -> PlanResult[tuple[ContactState, ...]]:
         stats["states"] = len(states)
         return PlanResult(status, tuple(states), dict(stats), message)
 
-    index = 0
     stuck = 0
     while index < len(poses) - 1:
         if until():
@@ -122,7 +132,7 @@ def contact_sequence(
             current = moved
             index += 1
             stuck = 0
-            try_create(index)
+            try_create()
             continue
         victim = next(limb for limb in current.limbs if limb in lost)
         attempt = break_contact(ctx, current, victim)
@@ -130,8 +140,10 @@ def contact_sequence(
             free_since[victim] = index
             emit(attempt.state, "breaks")
             continue
-        if try_create(index):
+        if try_create():
             continue
+        if lengths[-1] - lengths[index] <= p.lookahead:
+            break  # within a step of the end: make the goal contacts from here
         stuck += 1
         if stuck > p.max_stuck:
             return result(
