@@ -8,9 +8,13 @@ from __future__ import annotations
 
 import argparse
 import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
+
+# The repository root first: bench/planner.py must not shadow the planner package.
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from planner.character import builtin_character_ids, get_character
 from planner.offline import OfflineParams, load_offline_data
