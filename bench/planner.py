@@ -47,6 +47,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--scenario", action="append", default=[])
+    parser.add_argument("--no-twister", action="store_true", help="skip the Twister games")
     args = parser.parse_args()
     files = sorted(SCENARIOS.glob("*.json"))
     if args.scenario:
@@ -87,5 +88,23 @@ def main() -> None:
         )
 
 
+def twister_games() -> None:
+    """Median time per Twister step over the 20-move games of tests/scenarios/twister."""
+    from tests.planner.contact.twister_game import SCENARIOS as GAMES
+    from tests.planner.contact.twister_game import play
+
+    print(f"\n{'twister game':28s} {'moves':>5s} {'ok':>5s} {'med ms':>7s} {'p90 ms':>7s}")
+    for file in sorted(GAMES.glob("*.json")):
+        moves = play(file)
+        times = [m.result.timings.get("total", 0.0) * 1e3 for m in moves]
+        solved = sum(m.result.ok for m in moves) / max(1, len(moves))
+        print(
+            f"{file.stem:28s} {len(moves):5d} {solved:5.0%} {statistics.median(times):7.1f} "
+            f"{_p90(times):7.1f}"
+        )
+
+
 if __name__ == "__main__":
     main()
+    if "--no-twister" not in sys.argv:
+        twister_games()
