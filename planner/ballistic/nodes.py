@@ -329,6 +329,7 @@ class ReducedModel:
     collider: TrunkCollider
     _plane: FloatArray = field(repr=False)  # (S, 4): normal, offset of each surface plane
     _boxes: FloatArray = field(repr=False)  # (S, 2, 2): uv bounds of each surface
+    _area_rank: IntArray = field(repr=False)  # (S,): rank of each surface by decreasing area
 
     @staticmethod
     def build(
@@ -375,6 +376,7 @@ class ReducedModel:
             TrunkCollider.of(scene, character, margin),
             plane.reshape(-1, 4),
             boxes,
+            np.argsort(np.argsort([-sf.area for sf in surfaces], kind="stable")).astype(np.int64),
         )
 
     @property
@@ -407,12 +409,15 @@ class ReducedModel:
                     uv.max(axis=1) >= box[0], axis=1
                 )
                 straddle[rows[~overlap], s_idx] = False
-            for i, s_idx in zip(*np.nonzero(straddle), strict=True):
+            # The largest surface with a non-empty section wins: visit surfaces by decreasing
+            # area (ties: lower index) and stop at the first section found.
+            rows_i, surf_i = np.nonzero(straddle)
+            visit = np.lexsort((self._area_rank[surf_i], rows_i))
+            for i, s_idx in zip(rows_i[visit], surf_i[visit], strict=True):
+                if active[i, k]:
+                    continue
                 found = _section(world[i], self.edges[k], self.surfaces[s_idx], self.convex[s_idx])
-                surface = self.surfaces[s_idx]
-                if found is not None and (
-                    not active[i, k] or surface.area > self.scene.surfaces[surf_ids[i, k]].area
-                ):
+                if found is not None:
                     areas[i, k] = found[0]
                     points[i, k] = found[1]
                     normals[i, k] = self.surfaces[s_idx].normal
@@ -524,12 +529,15 @@ class SceneSampler:
         candidates = poses[~hit]
         found: list[RoadmapNodes] = []
         have = 0
-        for start in range(0, len(candidates), max(n, 16)):
-            got, _ = model.nodes(candidates[start : start + max(n, 16)], self.min_limbs)
+        start, batch = 0, max(n, 16)
+        while start < len(candidates) and have < n:
+            got, _ = model.nodes(candidates[start : start + batch], self.min_limbs)
             found.append(got)
             have += len(got)
-            if have >= n:
-                break
+            start += batch
+            # size the next batch from the acceptance seen so far (+10 %), not a full batch
+            rate = max(have / start, 0.05)
+            batch = max(8, int(np.ceil(1.1 * (n - have) / rate)))
         if not found:
             return model.nodes(np.zeros((0, 4, 4)), self.min_limbs)[0]
         out = found[0]
