@@ -265,6 +265,37 @@ def bench_scenarios(quick: bool) -> None:
     print("ms/jump: plan_jumps on the prebuilt roadmap (end points, query, keyframes) / jumps")
 
 
+def bench_paper_sized() -> None:
+    """Roadmap build at the paper's node count on the pond (paper: 47 nodes in 0.76 s)."""
+
+    from planner.ballistic.planner import JumpParams, RoadmapStore
+    from planner.character import get_character
+    from planner.offline import load_offline_data
+    from planner.scene import build_scene
+    from tests.paths import gecko_cache_dir
+    from tests.scenarios.jumps.scenes import pond_mesh
+
+    character = get_character("quadruped")
+    data = load_offline_data(character, gecko_cache_dir())
+    scene = build_scene(pond_mesh(), scene_id="pond", cache_dir=gecko_cache_dir())
+    print("\n== paper-sized roadmap: pond, 47 nodes (paper: 0.76 s) ==")
+    for lazy in (True, False):
+        params = JumpParams(
+            roadmap=RoadmapParams(v0max=5.0, vimpmax=7.0, max_gap=0.1, lazy=lazy),
+            min_limbs=2,
+            n_nodes=47,
+        )
+        times = []
+        for seed in range(5):
+            with tempfile.TemporaryDirectory() as directory:
+                start = time.perf_counter()
+                RoadmapStore(directory).build(scene, character, data, params, 47, seed)
+                times.append(time.perf_counter() - start)
+        median = statistics.median(times)
+        mode = "lazy edges " if lazy else "eager edges"
+        print(f"  {mode}: median {median:.3f} s, {0.76 / median:.1f}x faster than the paper")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller sizes")
@@ -272,6 +303,7 @@ def main() -> None:
     bench_steering(args.quick)
     bench_roadmap(args.quick)
     bench_scenarios(args.quick)
+    bench_paper_sized()
 
 
 if __name__ == "__main__":
