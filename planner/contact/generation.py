@@ -244,6 +244,35 @@ def _patch_radius(ctx: ContactContext, limb: str) -> float:
     return float(np.max(np.linalg.norm(pts[:, :2], axis=1))) + 0.001
 
 
+def _clear_of(
+    ctx: ContactContext,
+    sid: int,
+    point: FloatArray,
+    others: Sequence[LimbContact],
+    gap: float,
+    radius: float,
+) -> FloatArray | None:
+    """``point`` (3,) on surface ``sid``, pushed (along the surface) away from the nearest
+    contact point of ``others`` until it is ``gap`` m clear of all of them; None if it cannot."""
+    for _ in range(3):
+        near = [(float(np.min(np.linalg.norm(c.points - point, axis=1))), c) for c in others]
+        close = [(d, c) for d, c in near if d < gap]
+        if not close:
+            return point
+        d, c = min(close, key=lambda x: x[0])
+        nearest = c.points[int(np.argmin(np.linalg.norm(c.points - point, axis=1)))]
+        away = point - nearest
+        away[2] = 0.0
+        n = float(np.linalg.norm(away))
+        if n < 1e-6:
+            return None
+        moved = _point_on(ctx.scene.surfaces[sid], point + away / n * (gap - d + 0.01), radius)
+        if moved is None:
+            return None
+        point = moved
+    return None
+
+
 @dataclass(frozen=True, slots=True)
 class _Candidate:
     score: float
@@ -289,9 +318,8 @@ def _candidates(
             continue
         if np.linalg.norm(point - base) > reach:
             continue
-        if any(
-            np.min(np.linalg.norm(c.points - point, axis=1)) < 0.5 * radius + 0.02 for c in others
-        ):
+        point = _clear_of(ctx, sid, point, others, 0.5 * radius + 0.02, radius)
+        if point is None:
             continue
         local = root[:3, :3].T @ (point - root[:3, 3])
         seeds = db.samples_near(local[None], ctx.params.reach_radius)[:4]

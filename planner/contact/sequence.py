@@ -24,7 +24,7 @@ from planner.result import PlanResult, PlanStatus
 from planner.termination import Termination
 
 FloatArray = NDArray[np.float64]
-_STEP_FRACTIONS = (1.0, 0.66, 0.33)
+_STEP_FRACTIONS = (1.0, 0.66, 0.33, 0.0)
 
 
 @dataclass(frozen=True, slots=True)
@@ -33,6 +33,10 @@ class SequenceParams:
     lookahead : m ahead along the path that scores new contacts. goal_tolerance : m, a
     contact this close to the goal's counts as reached. max_states : cap on emitted states.
     max_stuck : consecutive root samples where nothing helps before giving up.
+    stride : m a contact may fall behind its reference position (along the path) before its
+    limb is lifted proactively. finish : m before the path end where the goal phase starts.
+    goal_steps : rounds of half-way steps toward far goal contacts. widen : m a colliding
+    foothold target is moved outward (away from the path) for a second try.
     """
 
     spacing: float = 0.05
@@ -40,6 +44,10 @@ class SequenceParams:
     goal_tolerance: float = 0.03
     max_states: int = 200
     max_stuck: int = 3
+    stride: float = 0.12
+    finish: float = 0.05
+    goal_steps: int = 3
+    widen: float = 0.06
 
     def __post_init__(self) -> None:
         if not 0 < self.spacing <= 0.5:
@@ -63,6 +71,42 @@ def _along(poses: FloatArray, lengths: FloatArray, s: float) -> FloatArray:
     """The root pose (4, 4) nearest to arc length ``s`` along the sampled path."""
     index = int(np.clip(np.searchsorted(lengths, s), 0, len(poses) - 1))
     return np.asarray(poses[index])
+
+
+def _behind(
+    state: ContactState, offsets: dict[str, FloatArray], pose: FloatArray, heading: FloatArray
+) -> dict[str, float]:
+    """Per contact limb, m its contact lies behind its reference position at root ``pose``
+    (4, 4), measured along the unit path ``heading`` (3,)."""
+    out = {}
+    for c in state.contacts:
+        ref = pose[:3, :3] @ offsets[c.limb] + pose[:3, 3]
+        out[c.limb] = float(np.dot(ref - c.position, heading))
+    return out
+
+
+def _toward(q: FloatArray, pose: FloatArray, step: float) -> FloatArray:
+    """Root pose (4, 4) with ``pose``'s orientation, moved from the root of ``q`` toward
+    ``pose``'s position by at most ``1.5 * step`` m (no jump back onto a path the whole-body
+    IK has drifted from)."""
+    out = np.array(pose)
+    delta = pose[:3, 3] - q[:3]
+    n = float(np.linalg.norm(delta))
+    if n > 1.5 * step:
+        out[:3, 3] = q[:3] + delta * (1.5 * step / n)
+    return out
+
+
+def _heading(poses: FloatArray, index: int) -> FloatArray:
+    """Unit horizontal direction (3,) of the path around sample ``index``."""
+    a = poses[max(index - 2, 0), :3, 3]
+    b = poses[min(index + 2, len(poses) - 1), :3, 3]
+    d = np.array([b[0] - a[0], b[1] - a[1], 0.0])
+    n = float(np.linalg.norm(d))
+    if n < 1e-9:
+        d = poses[index, :3, 0] * np.array([1.0, 1.0, 0.0])
+        n = float(np.linalg.norm(d)) or 1.0
+    return np.asarray(d / n, dtype=np.float64)
 
 
 def contact_sequence(
@@ -108,6 +152,18 @@ def contact_sequence(
                 ahead = _along(poses, lengths, float(lengths[index]) + fraction * p.lookahead)
                 target = ahead[:3, :3] @ offsets[limb] + ahead[:3, 3]
                 attempt = create_contact(ctx, current, limb, rng=rng, target=target)
+                if attempt.reason is FailureReason.COLLISION:
+                    # one candidate per surface: try the point a little further outward
+                    side = ahead[:3, :3] @ np.array([0.0, offsets[limb][1], 0.0])
+                    norm = float(np.linalg.norm(side))
+                    if norm > 1e-6:
+                        wider = target + side * (p.widen / norm)
+                        attempt = create_contact(ctx, current, limb, rng=rng, target=wider)
+                if attempt.ok and index + 1 < len(poses):
+                    # a contact made at full stretch would be lost at the next root sample
+                    nxt = _toward(attempt.state.q, poses[index + 1], p.spacing)
+                    if limb in maintain(ctx, attempt.state, nxt)[1]:
+                        continue
                 if attempt.ok:
                     free_since.pop(limb)
                     emit(attempt.state, "creations")
@@ -120,36 +176,64 @@ def contact_sequence(
         stats["states"] = len(states)
         return PlanResult(status, tuple(states), dict(stats), message)
 
+    def try_break(order: Sequence[str]) -> bool:
+        for limb in order:
+            attempt = break_contact(ctx, current, limb)
+            if attempt.ok:
+                free_since[limb] = index
+                emit(attempt.state, "breaks")
+                return True
+        return False
+
     stuck = 0
+    last_reason = ""
     while index < len(poses) - 1:
         if until():
             return result(PlanStatus.TIMEOUT, "time budget spent while walking the path")
         if len(states) >= p.max_states:
             return result(PlanStatus.APPROXIMATE, f"stopped at {p.max_states} states")
-        moved, lost = maintain(ctx, current, poses[index + 1])
+        if lengths[-1] - lengths[index] <= p.finish:
+            break  # close to the end: make the goal contacts from here
+        if free_since and try_create():
+            stuck = 0
+            continue
+        moved, lost = maintain(ctx, current, _toward(current.q, poses[index + 1], p.spacing))
         stats["root_samples"] = int(stats["root_samples"]) + 1
-        if not lost:
+        heading = _heading(poses, index)
+        behind = _behind(current, offsets, poses[index + 1], heading)
+        lagging = [limb for limb, b in behind.items() if b > p.stride]
+        if not lost and not (lagging and not free_since):
             current = moved
             index += 1
-            stuck = 0
-            try_create()
             continue
-        victim = next(limb for limb in current.limbs if limb in lost)
-        attempt = break_contact(ctx, current, victim)
-        if attempt.ok:
-            free_since[victim] = index
-            emit(attempt.state, "breaks")
+        if not free_since:
+            # proactive gait: lift the limb furthest behind that can be released
+            pool = lost if lost else lagging
+            if try_break(sorted(pool, key=lambda x: -behind[x])):
+                stuck = 0
+                continue
+            if not lost:  # nothing can be lifted yet: let the body move on over its feet
+                current = moved
+                index += 1
+                continue
+            if try_break(sorted((x for x in behind if x not in lost), key=lambda x: -behind[x])):
+                continue
+        elif lost:
+            victim = sorted(lost, key=lambda x: -behind[x])
+            if try_create():
+                continue
+            if try_break(victim):
+                continue
+        else:
+            current = moved
+            index += 1
             continue
-        if try_create():
-            continue
-        if lengths[-1] - lengths[index] <= p.lookahead:
-            break  # within a step of the end: make the goal contacts from here
+        last_reason = f"cannot release any of {sorted(behind)}"
         stuck += 1
         if stuck > p.max_stuck:
             return result(
                 PlanStatus.APPROXIMATE,
-                f"stuck at {lengths[index]:.2f} m of {lengths[-1]:.2f} m: cannot release "
-                f"{victim} ({attempt.reason.value if attempt.reason else 'unknown'})",
+                f"stuck at {lengths[index]:.2f} m of {lengths[-1]:.2f} m: {last_reason}",
             )
         index += 1  # the anchor skips a sample once; the next pose may be easier
 
@@ -175,6 +259,32 @@ def _reach_goal(
     else:
         targets = {c.limb: c.position for c in goal.contacts}
         surfaces = {c.limb: (c.surface if c.surface >= 0 else None) for c in goal.contacts}
+    for _ in range(p.goal_steps):  # limbs out of reach of their goal walk halfway first
+        for limb, target in targets.items():
+            existing = current.contact(limb)
+            if until() or target is None:
+                continue
+            start = existing.position if existing is not None else current.q[:3]
+            if np.linalg.norm(start[:2] - target[:2]) <= 0.25:
+                continue
+            partial = np.array(target)
+            partial[:2] = 0.5 * (start[:2] + target[:2])
+            released = break_contact(ctx, current, limb) if existing is not None else None
+            if released is not None and not released.ok:
+                continue
+            base = released.state if released is not None else current
+            made = create_contact(ctx, base, limb, rng=rng, target=target)
+            if not made.ok:
+                made = create_contact(ctx, base, limb, rng=rng, target=partial)
+            if not made.ok:
+                continue
+            if released is not None:
+                states.append(released.state)
+                stats["breaks"] = int(stats["breaks"]) + 1
+            current = made.state
+            states.append(current)
+            stats["creations"] = int(stats["creations"]) + 1
+            free_since.pop(limb, None)
     failures: list[str] = []
     for limb, target in targets.items():
         if until():
