@@ -150,9 +150,8 @@ def run_twister_step(request_json: str, seed: int) -> dict[str, Any]:
                 raise invalid(f"scene has {surface_count} surfaces", f"surfaces.{index}")
         ctx = make_context(scene, character, data, params, obstacles=obstacles)
         if request.state is not None:
-            requested = convert.state_from_request(character, request.state, "state")
-            contacts = {c.limb: c.surface for c in request.state.contacts}
-            made = state_from_configuration(ctx, requested.q, contacts)
+            q, contacts = convert.state_request(character, request.state, "state")
+            made = state_from_configuration(ctx, q, contacts)
             if not made.ok:
                 raise invalid(f"the state is not valid here: {made.message}", "state")
             state = made.state

@@ -6,7 +6,6 @@ import numpy as np
 
 from planner.character import Character
 from planner.contact.state import ContactState, LimbContact
-from planner.kinematics import frame_placement
 from planner.motion import ComSegment, Keyframe, Phase
 from planner.poses import matrix_to_quaternion
 from planner.scene import Scene, Surface, SurfaceKind
@@ -152,62 +151,25 @@ def q_from_configuration(
     return q
 
 
-def contact_from_limb(
-    character: Character,
-    q: np.ndarray,
-    limb_name: str,
-    *,
-    normal: np.ndarray | None = None,
-    mu: float | None = None,
-    surface: int = -1,
-) -> LimbContact:
-    """A limb's contact where configuration ``q`` puts its effector."""
-    limb = character.limb(limb_name)
-    placement = frame_placement(character.model, q, limb.effector_frame)
-    points = np.atleast_2d(limb.contact_points()) @ placement[:3, :3].T + placement[:3, 3]
-    world_normal = placement[:3, :3] @ limb.normal if normal is None else normal
-    return LimbContact(
-        limb=limb.name,
-        placement=placement,
-        points=points,
-        normal=world_normal,
-        mu=float(limb.mu if mu is None else mu),
-        surface=surface,
-    )
+def state_request(
+    character: Character, state: schemas.StateIn, field: str
+) -> tuple[np.ndarray, dict[str, int | None]]:
+    """A request state as q and the limbs in contact with their surface ids (None: unknown).
 
-
-def state_from_request(character: Character, state: schemas.StateIn, field: str) -> ContactState:
-    """The domain contact state of a request (placements recomputed from the configuration)."""
+    Unknown or repeated limbs are 422s; the planner places and validates the contacts.
+    """
     q = q_from_configuration(character, state.configuration, f"{field}.configuration")
     limb_names = {limb.name for limb in character.limbs}
-    contacts = []
-    seen: set[str] = set()
+    contacts: dict[str, int | None] = {}
     for index, contact in enumerate(state.contacts):
         where = f"{field}.contacts.{index}.limb"
         if contact.limb not in limb_names:
-            raise ApiError(
-                422,
-                "invalid_request",
-                f"unknown limb '{contact.limb}'; expected one of {sorted(limb_names)}",
-                where,
-            )
-        if contact.limb in seen:
+            message = f"unknown limb '{contact.limb}'; expected one of {sorted(limb_names)}"
+            raise ApiError(422, "invalid_request", message, where)
+        if contact.limb in contacts:
             raise ApiError(422, "invalid_request", f"limb '{contact.limb}' listed twice", where)
-        seen.add(contact.limb)
-        normal = None if contact.normal is None else np.asarray(contact.normal, dtype=np.float64)
-        if normal is not None and np.linalg.norm(normal) < 1e-9:
-            raise ApiError(422, "invalid_request", "contact normal must be non-zero", where)
-        contacts.append(
-            contact_from_limb(
-                character,
-                q,
-                contact.limb,
-                normal=normal,
-                mu=contact.mu,
-                surface=-1 if contact.surface is None else contact.surface,
-            )
-        )
-    return ContactState(q=q, contacts=tuple(contacts))
+        contacts[contact.limb] = None if contact.surface in (None, -1) else contact.surface
+    return q, contacts
 
 
 def contact_out(contact: LimbContact) -> schemas.ContactOut:
