@@ -14,6 +14,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
+from planner.contact.body import contact_placement, contact_points, exempt_geometries
 from planner.contact.context import ContactContext
 from planner.contact.state import ContactState, LimbContact
 from trajectory import (
@@ -52,15 +53,9 @@ def com_of(ctx: ContactContext, q: FloatArray) -> FloatArray:
 def contact_points_at(
     ctx: ContactContext, limb: str, pose: FloatArray, normal: FloatArray
 ) -> FloatArray:
-    """(k, 3) world contact points of ``limb`` with its effector at ``pose`` on a surface of
-    ``normal``: patch corners from the pose; a point contact is the lowest point of its
-    sphere (frame origin minus the offset length along the normal)."""
-    spec = ctx.character.limb(limb)
-    if spec.contact == "point":
-        return np.asarray(pose[:3, 3] - np.linalg.norm(spec.offset) * normal, dtype=np.float64)[
-            None
-        ]
-    return np.asarray(spec.contact_points() @ pose[:3, :3].T + pose[:3, 3], dtype=np.float64)
+    """(k, 3) world contact points of ``limb`` with its effector at ``pose`` (4, 4) on a
+    surface of ``normal`` (3,) (see :func:`planner.contact.body.contact_points`)."""
+    return contact_points(ctx.character.limb(limb), pose, normal)
 
 
 def hold_error(ctx: ContactContext, q: FloatArray, contacts: Sequence[LimbContact]) -> float:
@@ -73,9 +68,10 @@ def hold_error(ctx: ContactContext, q: FloatArray, contacts: Sequence[LimbContac
     return worst
 
 
-def make_contact(ctx: ContactContext, limb: str, pose: FloatArray, surface: int) -> LimbContact:
-    """The contact of ``limb`` with its effector at ``pose`` (4, 4) on scene ``surface``."""
+def make_contact(ctx: ContactContext, limb: str, q: FloatArray, surface: int) -> LimbContact:
+    """The contact of ``limb`` on scene ``surface`` where configuration ``q`` (nq,) puts it."""
     spec = ctx.character.limb(limb)
+    pose = contact_placement(ctx.character, limb, q, ctx.pin_data)
     normal = ctx.scene.surfaces[surface].normal
     pts = contact_points_at(ctx, limb, pose, normal)
     return LimbContact(limb, pose, pts, normal, float(spec.mu), int(surface))
@@ -182,16 +178,24 @@ def _collide(ctx: ContactContext, geometry: Any, matrix: FloatArray) -> bool:
 
 
 def scene_collisions(
-    ctx: ContactContext, q: FloatArray, only: Sequence[int] | NDArray[np.int64] | None = None
+    ctx: ContactContext,
+    q: FloatArray,
+    only: Sequence[int] | NDArray[np.int64] | None = None,
+    contact_limbs: Sequence[str] = (),
 ) -> list[str]:
     """Names of the character's collision geometries touching the scene or obstacles at q
-    (only the geometry indices ``only`` when given)."""
+    (only the geometry indices ``only`` when given). The geometries carrying the contacts of
+    ``contact_limbs`` (the effector shapes at their contact points) are not tested: they
+    touch their surface by design, and their placement is checked by ``contact_on_surface``."""
     geometry = ctx.character.geometry
     pin.updateGeometryPlacements(ctx.model, ctx.pin_data, geometry, ctx.geom_data, q)
     objects = geometry.geometryObjects
     indices = range(len(objects)) if only is None else [int(i) for i in only]
+    skip = exempt_geometries(ctx.character, contact_limbs)
     hits = []
     for i in indices:
+        if i in skip:
+            continue
         placement = np.asarray(ctx.geom_data.oMg[i].homogeneous)
         if _collide(ctx, objects[i].geometry, placement):
             hits.append(str(objects[i].name))
@@ -207,9 +211,10 @@ def self_collides(ctx: ContactContext, q: FloatArray) -> bool:
     )
 
 
-def collision_free(ctx: ContactContext, q: FloatArray) -> bool:
-    """No self-collision and no contact of the body with the scene or obstacles at ``q``."""
-    return not self_collides(ctx, q) and not scene_collisions(ctx, q)
+def collision_free(ctx: ContactContext, q: FloatArray, contact_limbs: Sequence[str] = ()) -> bool:
+    """No self-collision and no contact of the body with the scene or obstacles at ``q``,
+    the effector shapes of ``contact_limbs`` excepted (see :func:`scene_collisions`)."""
+    return not self_collides(ctx, q) and not scene_collisions(ctx, q, contact_limbs=contact_limbs)
 
 
 def within_limits(ctx: ContactContext, q: FloatArray, tol: float = 1e-6) -> bool:
@@ -252,5 +257,5 @@ def check_state(ctx: ContactContext, state: ContactState, hold_tol: float = 1e-3
     margin = balance_margin(ctx, state.contacts, com)
     kin = kinematics_of(ctx, state.contacts)
     kin_ok = bool(kin.violation(com) <= _KIN_TOL)
-    free = collision_free(ctx, q)
+    free = collision_free(ctx, q, state.limbs)
     return StateReport(on, held, free, margin >= ctx.params.margin, kin_ok, margin, com)

@@ -489,8 +489,7 @@ def create_contact(
     resampled = 0
     for tried, cand in enumerate(cands, start=1):
         for q in _projections(ctx, state, limb, cand):
-            pose = effector_pose(ctx, limb, q)
-            contact = make_contact(ctx, limb, pose, cand.surface)
+            contact = make_contact(ctx, limb, q, cand.surface)
             if not contact_on_surface(ctx, contact):
                 worst = max(worst, FailureReason.NOT_IN_CONTACT, key=_STAGE.__getitem__)
                 continue
@@ -498,7 +497,7 @@ def create_contact(
             if q2 is None:
                 worst = max(worst, why or FailureReason.NOT_BALANCED, key=_STAGE.__getitem__)
                 break
-            if not collision_free(ctx, q2):
+            if not collision_free(ctx, q2, (*state.limbs, limb)):
                 worst = max(worst, FailureReason.COLLISION, key=_STAGE.__getitem__)
                 resampled += 1
                 continue  # re-sample the limb posture
@@ -602,9 +601,7 @@ def stand_state(
             max_iterations=300,
         )
         q = np.array(result.q)
-    contacts = tuple(
-        make_contact(ctx, limb, effector_pose(ctx, limb, q), sid) for limb, sid in surfaces.items()
-    )
+    contacts = tuple(make_contact(ctx, limb, q, sid) for limb, sid in surfaces.items())
     state = ContactState(q, contacts)
     report = check_state(ctx, state)
     if not report.valid:
@@ -634,7 +631,7 @@ def state_from_configuration(
                 return _fail(empty, FailureReason.NOT_IN_CONTACT, limb, f"{limb}: no surface")
         elif not 0 <= sid < len(ctx.scene.surfaces):
             return _fail(empty, FailureReason.UNKNOWN_SURFACE, limb, f"surface {sid} unknown")
-        placed.append(make_contact(ctx, limb, pose, int(sid)))
+        placed.append(make_contact(ctx, limb, qq, int(sid)))
     state = ContactState(qq, tuple(placed))
     report = check_state(ctx, state)
     if not report.valid:

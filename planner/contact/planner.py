@@ -70,15 +70,45 @@ def _resolve(
     checker: ReachabilityChecker,
     rng: np.random.Generator,
     until: Deadline,
+    facing: FloatArray | None = None,
 ) -> PlanResult[ContactState]:
+    """The state of ``endpoint``; a ``stand_at`` endpoint faces the point ``facing`` (3,)
+    when given (so that a walk starts and ends looking along the way), else any yaw."""
     if endpoint.state is not None:
         return PlanResult(PlanStatus.SOLVED, endpoint.state)
     if endpoint.stand_at is not None:
-        return standing_state(
+        yaw = None
+        if facing is not None:
+            d = np.asarray(facing, dtype=np.float64)[:2] - endpoint.stand_at[:2]
+            if float(np.linalg.norm(d)) > 0.05:
+                yaw = float(np.arctan2(d[1], d[0]))
+        found = standing_state(
+            scene,
+            character,
+            data,
+            endpoint.stand_at,
+            rng=rng,
+            until=until,
+            checker=checker,
+            yaw=yaw,
+        )
+        if found.status is PlanStatus.SOLVED or yaw is None or until():
+            return found
+        return standing_state(  # no room facing the way: any heading
             scene, character, data, endpoint.stand_at, rng=rng, until=until, checker=checker
         )
     assert endpoint.root_pose is not None
     return state_from_root_pose(scene, character, data, endpoint.root_pose, checker=checker)
+
+
+def _position(endpoint: Endpoint) -> FloatArray:
+    """The world position (3,) an endpoint names."""
+    if endpoint.state is not None:
+        return np.asarray(endpoint.state.q[:3])
+    if endpoint.stand_at is not None:
+        return np.asarray(endpoint.stand_at)
+    assert endpoint.root_pose is not None
+    return np.asarray(endpoint.root_pose[:3, 3])
 
 
 def _root_pose(character: Character, q: FloatArray) -> FloatArray:
@@ -116,13 +146,14 @@ def plan_contact_motion(
 
     checker = ReachabilityChecker(scene, character, data)
     empty_path = np.zeros((0, 4, 4))
-    start_state = _resolve(start, scene, character, data, checker, rng, until)
+    start_state = _resolve(start, scene, character, data, checker, rng, until, _position(goal))
     if not start_state.status or start_state.value is None:
         lap("endpoints")
         status = PlanStatus.TIMEOUT if until() else PlanStatus.INVALID_START
         plan = ContactPlan((), empty_path, None, timings)
         return PlanResult(status, plan, {}, f"start: {start_state.message}")
-    goal_state = _resolve(goal, scene, character, data, checker, rng, until)
+    away = 2.0 * _position(goal) - _position(start)  # face on, the way the walk went
+    goal_state = _resolve(goal, scene, character, data, checker, rng, until, away)
     lap("endpoints")
     if not goal_state.status or goal_state.value is None:
         status = PlanStatus.TIMEOUT if until() else PlanStatus.INVALID_GOAL

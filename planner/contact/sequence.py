@@ -1,11 +1,21 @@
 """Contact sequence along a root path (anchor section 5), one contact change per state.
 
-Walking the path in steps of ``spacing``: contacts are kept while inverse kinematics can hold
-them at the next root pose; a contact that cannot be held is broken (oldest first) before
-the root moves on; a free limb gets a new contact, scored by a look-ahead target (its
-reference effector position at the root pose ``lookahead`` metres further along the path).
-At the end, the goal contacts are made one at a time. Every emitted state differs from the
-previous one by exactly one contact added or removed.
+The root path is a guide, not a constraint. The walker repeats a gait cycle:
+
+1. **advance**: whole-body IK moves the body toward the guide pose ``advance`` metres ahead
+   while every contact is held (root free, the guide pose a soft target); the move is kept
+   when the state stays valid (balanced with the margin, inside the kinematic polytopes,
+   collision-free), else a shorter move is tried;
+2. **step**: each walking limb has a desired foothold, its reference effector position at the
+   guide pose ``lookahead`` metres ahead of the body (the goal contacts near the end). The
+   next limb in a fixed gait order (each side back to front, left then right: a crawl for
+   quadrupeds, a wave for hexapods) that is off its foothold is released
+   (COM shifted over the other contacts, 2PAC) and put down again at its foothold or part of
+   the way there (candidates from the limb database, projected by IK, checked for collision,
+   balance with the margin and 2PAC feasibility). The release is only emitted with the new
+   contact, so a failed step leaves the sequence unchanged and another limb is tried.
+
+Every emitted state differs from the previous one by exactly one contact added or removed.
 """
 
 from __future__ import annotations
@@ -16,50 +26,55 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.contact.context import ContactContext, FailureReason
-from planner.contact.generation import break_contact, create_contact, maintain
+from planner.contact.checks import check_state
+from planner.contact.context import ContactContext
+from planner.contact.generation import break_contact, create_contact, hold_tasks, posture_task
 from planner.contact.state import ContactState
-from planner.kinematics import frame_placement
+from planner.kinematics import FramePlacementTask, Priority, frame_placement, solve_ik
 from planner.result import PlanResult, PlanStatus
 from planner.termination import Termination
 
 FloatArray = NDArray[np.float64]
-_STEP_FRACTIONS = (1.0, 0.66, 0.33, 0.0)
+_STEP_FRACTIONS = (1.0, 0.6, 0.3)
+_ADVANCE_FRACTIONS = (1.0, 0.5, 0.25)
+_ROOT_FRAME = 1  # Pinocchio frame of the free-flyer root joint
 
 
 @dataclass(frozen=True, slots=True)
 class SequenceParams:
-    """spacing : m between root samples along the path (the anchor uses 0.01 s of guide time).
-    lookahead : m ahead along the path that scores new contacts. goal_tolerance : m, a
-    contact this close to the goal's counts as reached. max_states : cap on emitted states.
-    max_stuck : consecutive root samples where nothing helps before giving up.
-    stride : m a contact may fall behind its reference position (along the path) before its
-    limb is lifted proactively. finish : m before the path end where the goal phase starts.
-    goal_steps : rounds of half-way steps toward far goal contacts. widen : m a colliding
-    foothold target is moved outward (away from the path) for a second try.
+    """spacing : m between root samples along the guide path. lookahead : m ahead of the body
+    along the path where the desired footholds are taken. advance : m the body is moved
+    toward per gait cycle. min_step : m, a limb closer than this to its foothold does not
+    step. goal_tolerance : m, a contact this close to the goal's counts as reached.
+    max_states : cap on emitted states. max_stuck : gait cycles in a row with neither body
+    progress nor a step before giving up.
     """
 
     spacing: float = 0.05
-    lookahead: float = 0.3
+    lookahead: float = 0.15
+    advance: float = 0.1
+    min_step: float = 0.05
     goal_tolerance: float = 0.03
     max_states: int = 200
     max_stuck: int = 3
-    stride: float = 0.12
-    finish: float = 0.05
-    goal_steps: int = 3
-    widen: float = 0.06
 
     def __post_init__(self) -> None:
         if not 0 < self.spacing <= 0.5:
             raise ValueError("spacing must be in (0, 0.5] m")
+        if not 0 < self.lookahead <= 2.0:
+            raise ValueError("lookahead must be in (0, 2] m")
+        if not 0 < self.advance <= 1.0:
+            raise ValueError("advance must be in (0, 1] m")
+        if not 0 < self.min_step <= 0.5:
+            raise ValueError("min_step must be in (0, 0.5] m")
         if not 0 < self.max_states <= 10_000:
             raise ValueError("max_states must be in [1, 10000]")
 
 
-def _reference_offsets(ctx: ContactContext) -> dict[str, FloatArray]:
-    """Each limb's effector position in the root frame at the reference posture."""
+def reference_offsets(ctx: ContactContext) -> dict[str, FloatArray]:
+    """Each limb's effector position (3,) in the root frame at the reference posture."""
     q_ref = np.asarray(ctx.character.q_ref)
-    root_inv = np.linalg.inv(frame_placement(ctx.model, q_ref, 1))
+    root_inv = np.linalg.inv(frame_placement(ctx.model, q_ref, _ROOT_FRAME))
     out = {}
     for limb in ctx.character.limbs:
         placement = frame_placement(ctx.model, q_ref, limb.effector_frame)
@@ -67,46 +82,79 @@ def _reference_offsets(ctx: ContactContext) -> dict[str, FloatArray]:
     return out
 
 
-def _along(poses: FloatArray, lengths: FloatArray, s: float) -> FloatArray:
-    """The root pose (4, 4) nearest to arc length ``s`` along the sampled path."""
-    index = int(np.clip(np.searchsorted(lengths, s), 0, len(poses) - 1))
-    return np.asarray(poses[index])
+def gait_order(offsets: dict[str, FloatArray], limbs: Sequence[str]) -> tuple[str, ...]:
+    """``limbs`` in stepping order: left side (offset y > 0) back to front, then the right
+    side back to front (a crawl for four legs, a wave for six, alternation for two)."""
+    left = sorted((x for x in limbs if offsets[x][1] > 0.0), key=lambda x: offsets[x][0])
+    right = sorted((x for x in limbs if offsets[x][1] <= 0.0), key=lambda x: offsets[x][0])
+    return (*left, *right)
 
 
-def _behind(
-    state: ContactState, offsets: dict[str, FloatArray], pose: FloatArray, heading: FloatArray
-) -> dict[str, float]:
-    """Per contact limb, m its contact lies behind its reference position at root ``pose``
-    (4, 4), measured along the unit path ``heading`` (3,)."""
-    out = {}
-    for c in state.contacts:
-        ref = pose[:3, :3] @ offsets[c.limb] + pose[:3, 3]
-        out[c.limb] = float(np.dot(ref - c.position, heading))
-    return out
+@dataclass(frozen=True, slots=True)
+class _Guide:
+    """The root path (n, 4, 4) with its cumulative arc lengths (n,) in metres."""
+
+    poses: FloatArray
+    lengths: FloatArray
+
+    @staticmethod
+    def of(poses: FloatArray) -> _Guide:
+        steps = np.linalg.norm(np.diff(poses[:, :3, 3], axis=0), axis=1)
+        return _Guide(poses, np.concatenate([[0.0], np.cumsum(steps)]))
+
+    @property
+    def length(self) -> float:
+        return float(self.lengths[-1])
+
+    def at(self, s: float) -> FloatArray:
+        """The pose (4, 4) at arc length ``s`` (positions interpolated, rotation of the
+        nearer sample)."""
+        s = float(np.clip(s, 0.0, self.length))
+        i = int(np.clip(np.searchsorted(self.lengths, s), 1, len(self.poses) - 1))
+        span = self.lengths[i] - self.lengths[i - 1]
+        w = 0.0 if span <= 1e-12 else (s - self.lengths[i - 1]) / span
+        out = np.array(self.poses[i] if w >= 0.5 else self.poses[i - 1])
+        out[:3, 3] = (1 - w) * self.poses[i - 1, :3, 3] + w * self.poses[i, :3, 3]
+        return out
+
+    def progress(self, position: FloatArray, near: float) -> float:
+        """Arc length (m) of the path sample nearest to ``position`` (3,), searched from
+        ``near - 0.3`` m on (the body never walks back along the guide)."""
+        start = int(np.searchsorted(self.lengths, near - 0.3))
+        gaps = np.linalg.norm(self.poses[start:, :3, 3] - position, axis=1)
+        return float(self.lengths[start + int(np.argmin(gaps))])
 
 
-def _toward(q: FloatArray, pose: FloatArray, step: float) -> FloatArray:
-    """Root pose (4, 4) with ``pose``'s orientation, moved from the root of ``q`` toward
-    ``pose``'s position by at most ``1.5 * step`` m (no jump back onto a path the whole-body
-    IK has drifted from)."""
-    out = np.array(pose)
-    delta = pose[:3, 3] - q[:3]
-    n = float(np.linalg.norm(delta))
-    if n > 1.5 * step:
-        out[:3, 3] = q[:3] + delta * (1.5 * step / n)
-    return out
-
-
-def _heading(poses: FloatArray, index: int) -> FloatArray:
-    """Unit horizontal direction (3,) of the path around sample ``index``."""
-    a = poses[max(index - 2, 0), :3, 3]
-    b = poses[min(index + 2, len(poses) - 1), :3, 3]
-    d = np.array([b[0] - a[0], b[1] - a[1], 0.0])
-    n = float(np.linalg.norm(d))
-    if n < 1e-9:
-        d = poses[index, :3, 0] * np.array([1.0, 1.0, 0.0])
-        n = float(np.linalg.norm(d)) or 1.0
-    return np.asarray(d / n, dtype=np.float64)
+def advance_body(
+    ctx: ContactContext, state: ContactState, root_target: FloatArray
+) -> ContactState | None:
+    """``state`` with the body moved toward the root pose ``root_target`` (4, 4) while every
+    contact is held (whole-body IK, the root pose a soft target); None when the result is not
+    a valid state (contacts held and on their surfaces, balanced, kinematic, collision-free)."""
+    tasks = [
+        *hold_tasks(state.contacts, ctx),
+        FramePlacementTask(_ROOT_FRAME, root_target, Priority.COM),
+        posture_task(ctx),
+    ]
+    active = np.flatnonzero(
+        ~np.isin(
+            np.arange(ctx.model.nv),
+            np.concatenate(
+                [np.zeros(0, dtype=np.int64)]
+                + [x.idx_v for x in ctx.character.limbs if state.contact(x.name) is None]
+            ),
+        )
+    )
+    result = solve_ik(
+        ctx.model,
+        state.q,
+        tasks,
+        data=ctx.pin_data,
+        active=active,
+        max_iterations=ctx.params.ik_iterations,
+    )
+    moved = ContactState(np.array(result.q), state.contacts)
+    return moved if check_state(ctx, moved).valid else None
 
 
 def contact_sequence(
@@ -119,212 +167,140 @@ def contact_sequence(
     until: Termination,
     params: SequenceParams | None = None,
 ) -> PlanResult[tuple[ContactState, ...]]:
-    """States from ``start`` along root ``poses`` (n, 4, 4) (dense, <= spacing apart) to ``goal``.
+    """States from ``start`` along the guide ``poses`` (n, 4, 4) to ``goal``.
 
-    SOLVED when the goal contacts are all made; APPROXIMATE with the states found so far when
-    stuck; TIMEOUT (with the partial states) when ``until`` fires.
+    SOLVED when the body has reached the end of the guide and every goal contact is made
+    (within ``goal_tolerance``); APPROXIMATE with the states found so far when stuck; TIMEOUT
+    (with the partial states) when ``until`` fires.
     """
     p = params or SequenceParams()
-    offsets = _reference_offsets(ctx)
-    steps = np.linalg.norm(np.diff(poses[:, :3, 3], axis=0), axis=1)
-    lengths = np.concatenate([[0.0], np.cumsum(steps)])
+    guide = _Guide.of(np.asarray(poses, dtype=np.float64))
+    offsets = reference_offsets(ctx)
+    walking = list(start.limbs)
+    if goal is not None:
+        walking += [x for x in goal.limbs if x not in walking]
+    order = gait_order(offsets, walking)
     states: list[ContactState] = [start]
-    current = start
-    free_since = {limb: -1 for limb in ctx.limb_names() if start.contact(limb) is None}
-    index = 0
-    stats: dict[str, float | int | str] = {"breaks": 0, "creations": 0, "root_samples": 0}
-
-    def emit(state: ContactState, kind: str) -> None:
-        # Whole-body IK may carry the root along the path: walk on from the nearest path
-        # sample ahead of us, never back.
-        nonlocal current, index
-        current = state
-        states.append(state)
-        stats[kind] = int(stats[kind]) + 1
-        ahead = poses[index:, :3, 3]
-        index += int(np.argmin(np.linalg.norm(ahead - state.q[:3], axis=1)))
-
-    def try_create() -> bool:
-        # The longest step first: the limb's reference position at the root pose `lookahead`
-        # metres ahead, then shorter ones.
-        for limb in sorted(free_since, key=free_since.__getitem__):
-            for fraction in _STEP_FRACTIONS:
-                ahead = _along(poses, lengths, float(lengths[index]) + fraction * p.lookahead)
-                target = ahead[:3, :3] @ offsets[limb] + ahead[:3, 3]
-                attempt = create_contact(ctx, current, limb, rng=rng, target=target)
-                if attempt.reason is FailureReason.COLLISION:
-                    # one candidate per surface: try the point a little further outward
-                    side = ahead[:3, :3] @ np.array([0.0, offsets[limb][1], 0.0])
-                    norm = float(np.linalg.norm(side))
-                    if norm > 1e-6:
-                        wider = target + side * (p.widen / norm)
-                        attempt = create_contact(ctx, current, limb, rng=rng, target=wider)
-                if attempt.ok and index + 1 < len(poses):
-                    # a contact made at full stretch would be lost at the next root sample
-                    nxt = _toward(attempt.state.q, poses[index + 1], p.spacing)
-                    if limb in maintain(ctx, attempt.state, nxt)[1]:
-                        continue
-                if attempt.ok:
-                    free_since.pop(limb)
-                    emit(attempt.state, "creations")
-                    return True
-                if attempt.reason is FailureReason.NOTHING_REACHABLE and fraction == 1.0:
-                    break  # no surface near this limb at all: shorter steps will not help
-        return False
+    current = start  # the body now: states[-1]'s contacts, its posture moved on by advances
+    stats: dict[str, float | int | str] = {"breaks": 0, "creations": 0, "cycles": 0}
+    s = 0.0
+    turn = 0  # index into ``order`` of the limb whose turn it is
 
     def result(status: PlanStatus, message: str = "") -> PlanResult[tuple[ContactState, ...]]:
         stats["states"] = len(states)
+        stats["progress_m"] = round(s, 4)
         return PlanResult(status, tuple(states), dict(stats), message)
 
-    def try_break(order: Sequence[str]) -> bool:
-        for limb in order:
-            attempt = break_contact(ctx, current, limb)
-            if attempt.ok:
-                free_since[limb] = index
-                emit(attempt.state, "breaks")
-                return True
+    def footholds(at: float) -> dict[str, FloatArray]:
+        pose = guide.at(at)
+        out = {x: pose[:3, :3] @ offsets[x] + pose[:3, 3] for x in order}
+        if goal is not None and at >= guide.length - 1e-9:
+            out.update({c.limb: c.position for c in goal.contacts})
+        return out
+
+    def step(limb: str, target: FloatArray) -> bool:
+        nonlocal current
+        old = current.contact(limb)
+        base = current
+        if old is not None:
+            released = break_contact(ctx, current, limb)
+            if not released.ok:
+                return False
+            base = released.state
+            before = float(np.linalg.norm(old.position - target))
+        else:
+            before = np.inf
+        for fraction in _STEP_FRACTIONS:
+            aim = target if old is None else old.position + fraction * (target - old.position)
+            made = create_contact(ctx, base, limb, rng=rng, target=aim)
+            if not made.ok:
+                continue
+            placed = made.state.contact(limb)
+            assert placed is not None
+            if float(np.linalg.norm(placed.position - target)) > before - 0.5 * p.min_step:
+                continue  # not a step toward the foothold
+            if base is not current:
+                states.append(base)
+                stats["breaks"] = int(stats["breaks"]) + 1
+            states.append(made.state)
+            current = made.state
+            stats["creations"] = int(stats["creations"]) + 1
+            return True
         return False
 
     stuck = 0
-    last_reason = ""
-    while index < len(poses) - 1:
+    while True:
         if until():
             return result(PlanStatus.TIMEOUT, "time budget spent while walking the path")
         if len(states) >= p.max_states:
             return result(PlanStatus.APPROXIMATE, f"stopped at {p.max_states} states")
-        if lengths[-1] - lengths[index] <= p.finish:
-            break  # close to the end: make the goal contacts from here
-        if free_since and try_create():
+        stats["cycles"] = int(stats["cycles"]) + 1
+        # 1. advance the body along the guide
+        moved = False
+        if s < guide.length - 1e-9:
+            for fraction in _ADVANCE_FRACTIONS:
+                target_s = min(s + fraction * p.advance, guide.length)
+                advanced = advance_body(ctx, current, guide.at(target_s))
+                if advanced is None:
+                    continue
+                new_s = guide.progress(advanced.q[:3], s)
+                if new_s > s + 1e-3:
+                    current = advanced  # same contacts: the body moves within the phase
+                    s = new_s
+                    moved = True
+                break
+        # 2. step the limb furthest from its foothold
+        at_end = s >= guide.length - p.spacing
+        wanted = footholds(guide.length if at_end else s + p.lookahead)
+        gaps = {}
+        for limb in order:
+            c = current.contact(limb)
+            gaps[limb] = np.inf if c is None else float(np.linalg.norm(c.position - wanted[limb]))
+        tol = p.goal_tolerance if at_end else p.min_step
+        if at_end and all(
+            gaps[x] <= p.goal_tolerance for x in (goal.limbs if goal is not None else order)
+        ):
+            return _finish(ctx, states, current, goal, stats, result)
+        rotation = order[turn:] + order[:turn]
+        candidates = [x for x in rotation if gaps[x] > tol]
+        stepped = False
+        for limb in candidates:
+            if step(limb, wanted[limb]):
+                turn = (order.index(limb) + 1) % len(order)
+                stepped = True
+                break
+        if stepped or moved:
             stuck = 0
             continue
-        moved, lost = maintain(ctx, current, _toward(current.q, poses[index + 1], p.spacing))
-        stats["root_samples"] = int(stats["root_samples"]) + 1
-        heading = _heading(poses, index)
-        behind = _behind(current, offsets, poses[index + 1], heading)
-        lagging = [limb for limb, b in behind.items() if b > p.stride]
-        if not lost and not (lagging and not free_since):
-            current = moved
-            index += 1
-            continue
-        if not free_since:
-            # proactive gait: lift the limb furthest behind that can be released
-            pool = lost if lost else lagging
-            if try_break(sorted(pool, key=lambda x: -behind[x])):
-                stuck = 0
-                continue
-            if not lost:  # nothing can be lifted yet: let the body move on over its feet
-                current = moved
-                index += 1
-                continue
-            if try_break(sorted((x for x in behind if x not in lost), key=lambda x: -behind[x])):
-                continue
-        elif lost:
-            victim = sorted(lost, key=lambda x: -behind[x])
-            if try_create():
-                continue
-            if try_break(victim):
-                continue
-        else:
-            current = moved
-            index += 1
-            continue
-        last_reason = f"cannot release any of {sorted(behind)}"
         stuck += 1
         if stuck > p.max_stuck:
+            far = ", ".join(f"{x} {gaps[x]:.2f} m" for x in candidates) or "none"
             return result(
                 PlanStatus.APPROXIMATE,
-                f"stuck at {lengths[index]:.2f} m of {lengths[-1]:.2f} m: {last_reason}",
+                f"stuck at {s:.2f} m of {guide.length:.2f} m; limbs off their footholds: {far}",
             )
-        index += 1  # the anchor skips a sample once; the next pose may be easier
-
-    return _reach_goal(ctx, current, goal, states, free_since, stats, rng, until, p)
 
 
-def _reach_goal(
+def _finish(
     ctx: ContactContext,
+    states: list[ContactState],
     current: ContactState,
     goal: ContactState | None,
-    states: list[ContactState],
-    free_since: dict[str, int],
     stats: dict[str, float | int | str],
-    rng: np.random.Generator,
-    until: Termination,
-    p: SequenceParams,
+    result: object,
 ) -> PlanResult[tuple[ContactState, ...]]:
-    """Make the goal's contacts one change at a time (break misplaced ones, then create)."""
-    if goal is None:
-        wanted: Sequence[str] = [limb for limb in ctx.limb_names() if limb in free_since]
-        targets: dict[str, FloatArray | None] = dict.fromkeys(wanted)
-        surfaces: dict[str, int | None] = dict.fromkeys(wanted)
-    else:
-        targets = {c.limb: c.position for c in goal.contacts}
-        surfaces = {c.limb: (c.surface if c.surface >= 0 else None) for c in goal.contacts}
-    for _ in range(p.goal_steps):  # limbs out of reach of their goal walk halfway first
-        for limb, target in targets.items():
-            existing = current.contact(limb)
-            if until() or target is None:
-                continue
-            start = existing.position if existing is not None else current.q[:3]
-            if np.linalg.norm(start[:2] - target[:2]) <= 0.25:
-                continue
-            partial = np.array(target)
-            partial[:2] = 0.5 * (start[:2] + target[:2])
-            released = break_contact(ctx, current, limb) if existing is not None else None
-            if released is not None and not released.ok:
-                continue
-            base = released.state if released is not None else current
-            made = create_contact(ctx, base, limb, rng=rng, target=target)
-            if not made.ok:
-                made = create_contact(ctx, base, limb, rng=rng, target=partial)
-            if not made.ok:
-                continue
-            if released is not None:
-                states.append(released.state)
-                stats["breaks"] = int(stats["breaks"]) + 1
-            current = made.state
-            states.append(current)
-            stats["creations"] = int(stats["creations"]) + 1
-            free_since.pop(limb, None)
-    failures: list[str] = []
-    for limb, target in targets.items():
-        if until():
-            break
-        existing = current.contact(limb)
-        if existing is not None and (
-            target is None or np.linalg.norm(existing.position - target) <= p.goal_tolerance
-        ):
-            continue
-        if existing is not None:
+    """Release the contacts the goal does not have, then report SOLVED."""
+    assert callable(result)
+    if goal is not None:
+        for limb in [x for x in current.limbs if goal.contact(x) is None]:
             released = break_contact(ctx, current, limb)
             if not released.ok:
-                failures.append(f"{limb}: cannot release ({released.message})")
-                continue
+                out: PlanResult[tuple[ContactState, ...]] = result(
+                    PlanStatus.APPROXIMATE, f"{limb}: cannot release for the goal"
+                )
+                return out
+            states.append(released.state)
             current = released.state
-            states.append(current)
             stats["breaks"] = int(stats["breaks"]) + 1
-        made = create_contact(ctx, current, limb, rng=rng, target=target, surface=surfaces[limb])
-        if made.ok and (
-            target is None
-            or np.linalg.norm(made.state.contact(limb).position - target)  # type: ignore[union-attr]
-            <= p.goal_tolerance
-        ):
-            current = made.state
-            states.append(current)
-            stats["creations"] = int(stats["creations"]) + 1
-        else:
-            failures.append(f"{limb}: goal contact not made ({made.message or 'too far'})")
-    if goal is not None:
-        for limb in [c for c in current.limbs if goal.contact(c) is None]:
-            released = break_contact(ctx, current, limb)
-            if released.ok:
-                current = released.state
-                states.append(current)
-                stats["breaks"] = int(stats["breaks"]) + 1
-            else:
-                failures.append(f"{limb}: cannot release for the goal")
-    stats["states"] = len(states)
-    if until() and failures:
-        return PlanResult(PlanStatus.TIMEOUT, tuple(states), dict(stats), "; ".join(failures))
-    if failures:
-        return PlanResult(PlanStatus.APPROXIMATE, tuple(states), dict(stats), "; ".join(failures))
-    return PlanResult(PlanStatus.SOLVED, tuple(states), dict(stats))
+    done: PlanResult[tuple[ContactState, ...]] = result(PlanStatus.SOLVED)
+    return done

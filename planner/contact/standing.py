@@ -22,6 +22,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from planner.character import Character, Limb
+from planner.contact.body import body_geometry, contact_placement, contact_points, exempt_geometries
 from planner.contact.reachability import ReachabilityChecker, ground_limbs
 from planner.contact.state import ContactState, LimbContact
 from planner.kinematics import (
@@ -50,10 +51,6 @@ CONTACT_TOLERANCE = 0.005
 """Largest distance (m) of a contact point from its surface plane."""
 NORMAL_TOLERANCE = 0.02
 """Largest angle (rad) between the effector contact normal and the surface normal."""
-EXEMPT_DISTANCE = 0.01
-"""Geometries of a contacting effector's link closer than this (m) to its contact points (or,
-for ground limbs, reaching this close to the ground in ``q_ref``) may touch the scene: they
-carry the contact."""
 GRAVITY = 9.81
 _HEADINGS = 16  # root yaws tried, evenly spread, when none is imposed
 
@@ -77,73 +74,16 @@ class StandingParams:
     posture_weight: float = 0.5
 
 
-@dataclass(frozen=True, slots=True, eq=False)
-class _BodyGeometry:
-    """Per character: the collision objects and the ones exempt per contacting limb."""
-
-    objects: tuple[tuple[int, object, pin.SE3], ...]  # (parent joint, coal geometry, placement)
-    exempt: dict[str, frozenset[int]]
-
-
-_GEOMETRY: dict[int, tuple[Character, _BodyGeometry]] = {}  # characters are few and memoised
-
-
-def _body_geometry(character: Character) -> _BodyGeometry:
-    key = id(character)
-    hit = _GEOMETRY.get(key)
-    if hit is not None and hit[0] is character:
-        return hit[1]
-    model, gmodel = character.model, character.geometry
-    data = model.createData()
-    pin.framesForwardKinematics(model, data, character.q_ref)
-    objects = tuple((int(o.parentJoint), o.geometry, o.placement) for o in gmodel.geometryObjects)
-    request, result = coal.DistanceRequest(), coal.DistanceResult()
-    exempt: dict[str, frozenset[int]] = {}
-    grounded = ground_limbs(character)
-    for limb in character.limbs:
-        placement = data.oMf[limb.frame_id]
-        points = limb.contact_points() @ np.array(placement.rotation).T + placement.translation
-        joint = int(model.frames[limb.frame_id].parentJoint)
-        near = set()
-        for g, (parent, geometry, offset) in enumerate(objects):
-            if parent != joint:
-                continue
-            world = data.oMi[parent] * offset
-            tf = coal.Transform3s(np.array(world.rotation), np.array(world.translation))
-            geometry.computeLocalAABB()
-            lo, hi = np.array(geometry.aabb_local.min_), np.array(geometry.aabb_local.max_)
-            box = np.array(
-                [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
-            )
-            lowest = float((box @ np.array(world.rotation).T + world.translation)[:, 2].min())
-            if limb.name in grounded and lowest < EXEMPT_DISTANCE:
-                near.add(g)
-            for point in points:
-                result.clear()
-                probe = coal.Transform3s(np.eye(3), np.asarray(point, dtype=np.float64))
-                d = coal.distance(geometry, tf, coal.Sphere(1e-4), probe, request, result)
-                if d < EXEMPT_DISTANCE:
-                    near.add(g)
-        exempt[limb.name] = frozenset(near)
-    out = _BodyGeometry(objects, exempt)
-    if len(_GEOMETRY) > 64:
-        _GEOMETRY.clear()
-    _GEOMETRY[key] = (character, out)
-    return out
-
-
 def body_collides_scene(
     scene: Scene, character: Character, q: FloatArray, contact_limbs: Sequence[str] = ()
 ) -> bool:
     """Whether the character's collision geometry at ``q`` (nq,) touches the scene mesh, the
     geometry carrying the contacts of ``contact_limbs`` excepted."""
-    body = _body_geometry(character)
+    body = body_geometry(character)
     model = character.model
     data = scratch_data(model)
     pin.forwardKinematics(model, data, np.asarray(q, dtype=np.float64))
-    skip: set[int] = set()
-    for name in contact_limbs:
-        skip |= body.exempt[name]
+    skip = exempt_geometries(character, contact_limbs)
     bvh = scene.collision.bvh
     identity = coal.Transform3s()
     request, result = coal.CollisionRequest(), coal.CollisionResult()
@@ -224,10 +164,6 @@ def _project(
     return solve_ik(model, q, tasks, data=data, active=dofs)
 
 
-def _contact_points(limb: Limb, placement: FloatArray) -> FloatArray:
-    return np.asarray(limb.contact_points() @ placement[:3, :3].T + placement[:3, 3])
-
-
 def contact_on_surface(contact: LimbContact, surface: Surface, limb: Limb) -> bool:
     """Contact points within ``CONTACT_TOLERANCE`` of the surface plane and inside it, and the
     effector contact normal within ``NORMAL_TOLERANCE`` of the surface normal (patches only:
@@ -303,14 +239,13 @@ def state_from_root_pose(
         chosen.append((limb, surface))
     if not within_limits(model, q):
         return _fail("joint limits violated")
-    pin.framesForwardKinematics(model, pin_data, q)
     contacts = []
     for limb, surface in chosen:
-        placement = np.array(pin_data.oMf[limb.frame_id].homogeneous, dtype=np.float64)
+        placement = contact_placement(character, limb.name, q, pin_data)
         contact = LimbContact(
             limb.name,
             placement,
-            _contact_points(limb, placement),
+            contact_points(limb, placement, surface.normal),
             surface.normal,
             limb.mu,
             surface.id,

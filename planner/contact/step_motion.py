@@ -14,7 +14,7 @@ earlier, in ``generation.create_contact``).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -173,7 +173,8 @@ def step_motion(
             q = np.array(configs[-1])
         qs[0] = np.array(before.q)
         qs[-1] = np.array(after.q)
-        hits = _colliding(ctx, qs, spec_geoms)
+        held = tuple(x for x in before.limbs if x in after.limbs)
+        hits = _colliding(ctx, qs, spec_geoms, held)
         if best is None or hits < best[3]:
             best = (qs, ts, worst_hold, hits, lift)
         if hits == 0:
@@ -221,14 +222,17 @@ def limb_geometries(ctx: ContactContext, limb: str) -> NDArray[np.int64]:
     )
 
 
-def _colliding(ctx: ContactContext, qs: list[FloatArray], swing: NDArray[np.int64]) -> int:
+def _colliding(
+    ctx: ContactContext, qs: list[FloatArray], swing: NDArray[np.int64], stance: Sequence[str]
+) -> int:
     """Interior keyframes with a collision: self-collision and the swing limb's shapes
-    against the scene at every keyframe, the whole body against the scene every
-    ``_FULL_CHECK_STRIDE`` keyframes."""
+    against the scene at every keyframe, the whole body (the effector shapes of the ``stance``
+    limbs excepted) against the scene every ``_FULL_CHECK_STRIDE`` keyframes."""
     hits = 0
     for i, q in enumerate(qs[1:-1], start=1):
         only = None if i % _FULL_CHECK_STRIDE == 0 else swing
-        hits += int(self_collides(ctx, q) or bool(scene_collisions(ctx, q, only)))
+        hit = scene_collisions(ctx, q, only, contact_limbs=stance)
+        hits += int(self_collides(ctx, q) or bool(hit))
     return hits
 
 

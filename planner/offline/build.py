@@ -224,7 +224,9 @@ def build_com(
     progress: Progress | None = None,
 ) -> FloatArray:
     """(com_samples, L, 3) whole-body COM of collision-free samples (all joints uniform within
-    limits) expressed in each of the L limbs' effector frames."""
+    limits) relative to each of the L limbs' effectors: in the effector frame for patch
+    contacts, along the root frame's axes for point contacts (whose frame orientation is
+    arbitrary; see ``planner.contact.checks.make_contact``)."""
     lo, hi = character.lower, character.upper
     frames = [character.model.frames[limb.frame_id] for limb in character.limbs]
     f_joints = [int(f.parentJoint) for f in frames]
@@ -234,12 +236,17 @@ def build_com(
     def draw(n: int) -> FloatArray:
         return np.asarray(rng.uniform(lo, hi, size=(n, len(lo))), dtype=np.float64)
 
+    points = [limb.contact == "point" for limb in character.limbs]
+
     def keep(q: FloatArray, rot: FloatArray, trans: FloatArray) -> FloatArray:
         com = center_of_mass(kin, rot, trans)
         per_limb = []
-        for j, fr, ft in zip(f_joints, f_rots, f_trans, strict=True):
+        for j, fr, ft, point in zip(f_joints, f_rots, f_trans, points, strict=True):
             r_f, t_f = frame_placement(rot, trans, j, fr, ft)
-            per_limb.append(np.einsum("nba,nb->na", r_f, com - t_f))
+            if point:  # a point contact has no orientation: axes of the root frame
+                per_limb.append(com - t_f)
+            else:
+                per_limb.append(np.einsum("nba,nb->na", r_f, com - t_f))
         return np.stack(per_limb, axis=1)
 
     _, kept = _collect(draw, checker, kin, params.com_samples, params, "whole body", progress, keep)

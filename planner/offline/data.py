@@ -24,7 +24,7 @@ from planner.offline.build import OfflineParams, build_all
 from planner.offline.database import SampleDatabase
 from planner.shapes import ConvexPolytope
 
-CODE_VERSION = "offline-1"
+CODE_VERSION = "offline-2"
 """Version of the offline computation; part of the cache key."""
 
 FloatArray = NDArray[np.float64]

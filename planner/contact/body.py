@@ -1,0 +1,115 @@
+"""The character's body as the contact code sees it: which collision shapes carry each
+limb's contact, and where a contact is recorded (placement and contact points).
+
+One rule for every producer of contacts (standing states, contact creation, states sent by
+clients), so that every check agrees on what touches the scene by design.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import coal
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from planner.character import Character, Limb
+from planner.contact.reachability import ground_limbs
+
+FloatArray = NDArray[np.float64]
+
+EXEMPT_DISTANCE = 0.01
+"""Geometries of a contacting effector's link closer than this (m) to its contact points (or,
+for ground limbs, reaching this close to the ground in ``q_ref``) may touch the scene: they
+carry the contact."""
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class BodyGeometry:
+    """Per character: the collision objects and the ones exempt per contacting limb."""
+
+    objects: tuple[tuple[int, object, pin.SE3], ...]  # (parent joint, coal geometry, placement)
+    exempt: dict[str, frozenset[int]]
+
+
+_GEOMETRY: dict[int, tuple[Character, BodyGeometry]] = {}  # characters are few and memoised
+
+
+def body_geometry(character: Character) -> BodyGeometry:
+    key = id(character)
+    hit = _GEOMETRY.get(key)
+    if hit is not None and hit[0] is character:
+        return hit[1]
+    model, gmodel = character.model, character.geometry
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, character.q_ref)
+    objects = tuple((int(o.parentJoint), o.geometry, o.placement) for o in gmodel.geometryObjects)
+    request, result = coal.DistanceRequest(), coal.DistanceResult()
+    exempt: dict[str, frozenset[int]] = {}
+    grounded = ground_limbs(character)
+    for limb in character.limbs:
+        placement = data.oMf[limb.frame_id]
+        points = limb.contact_points() @ np.array(placement.rotation).T + placement.translation
+        joint = int(model.frames[limb.frame_id].parentJoint)
+        near = set()
+        for g, (parent, geometry, offset) in enumerate(objects):
+            if parent != joint:
+                continue
+            world = data.oMi[parent] * offset
+            tf = coal.Transform3s(np.array(world.rotation), np.array(world.translation))
+            geometry.computeLocalAABB()
+            lo, hi = np.array(geometry.aabb_local.min_), np.array(geometry.aabb_local.max_)
+            box = np.array(
+                [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+            )
+            lowest = float((box @ np.array(world.rotation).T + world.translation)[:, 2].min())
+            if limb.name in grounded and lowest < EXEMPT_DISTANCE:
+                near.add(g)
+            for point in points:
+                result.clear()
+                probe = coal.Transform3s(np.eye(3), np.asarray(point, dtype=np.float64))
+                d = coal.distance(geometry, tf, coal.Sphere(1e-4), probe, request, result)
+                if d < EXEMPT_DISTANCE:
+                    near.add(g)
+        exempt[limb.name] = frozenset(near)
+    out = BodyGeometry(objects, exempt)
+    if len(_GEOMETRY) > 64:
+        _GEOMETRY.clear()
+    _GEOMETRY[key] = (character, out)
+    return out
+
+
+def exempt_geometries(character: Character, contact_limbs: Sequence[str]) -> frozenset[int]:
+    """Indices of the collision geometries that carry the contacts of ``contact_limbs``: they
+    may touch the scene (within the contact tolerance) without counting as a collision."""
+    exempt = body_geometry(character).exempt
+    out: set[int] = set()
+    for name in contact_limbs:
+        out |= exempt.get(name, frozenset())
+    return frozenset(out)
+
+
+def contact_placement(character: Character, limb: str, q: FloatArray, data: Any) -> FloatArray:
+    """(4, 4) world placement recorded for ``limb``'s contact at configuration ``q`` (nq,):
+    the effector frame for a patch contact; for a point contact (free to turn about its
+    point) the effector position with the root's orientation, the frame its offline COM
+    polytope is expressed in. ``data`` is Pinocchio scratch data of the character's model."""
+    pin.framesForwardKinematics(character.model, data, np.asarray(q, dtype=np.float64))
+    spec = character.limb(limb)
+    out = np.asarray(data.oMf[spec.frame_id].homogeneous, dtype=np.float64).copy()
+    if spec.contact == "point":
+        out[:3, :3] = np.asarray(data.oMi[1].rotation)
+    return out
+
+
+def contact_points(limb: Limb, placement: FloatArray, normal: FloatArray) -> FloatArray:
+    """(k, 3) world contact points of ``limb`` with its effector at ``placement`` (4, 4) on a
+    surface of unit ``normal`` (3,): the patch corners, or for a point contact the lowest
+    point of its sphere (frame origin minus the offset length along the normal)."""
+    if limb.contact == "point":
+        centre = placement[:3, 3] - float(np.linalg.norm(limb.offset)) * np.asarray(normal)
+        return np.asarray(centre, dtype=np.float64)[None]
+    return np.asarray(limb.contact_points() @ placement[:3, :3].T + placement[:3, 3])
