@@ -358,7 +358,9 @@ class PlanOptionsIn(BaseModel):
 
     rate: Rate = 30.0
     margin: float = Field(default=1.0, ge=0, le=1000, description="equilibrium robustness, N")
-    lookahead: float = Field(default=0.3, gt=0, le=2.0, description="m along the root path")
+    lookahead: float = Field(
+        default=0.15, gt=0, le=2.0, description="m ahead of the body where footholds are aimed"
+    )
     max_states: int = Field(default=200, ge=2, le=2000)
 
 

@@ -82,14 +82,23 @@ def body_geometry(character: Character) -> BodyGeometry:
     return out
 
 
-def exempt_geometries(character: Character, contact_limbs: Sequence[str]) -> frozenset[int]:
-    """Indices of the collision geometries that carry the contacts of ``contact_limbs``: they
-    may touch the scene (within the contact tolerance) without counting as a collision."""
+CONTACT_LIFT = 0.006
+"""How far (m) a contact-carrying shape is raised along its contact normal before it is tested
+against the scene: a sole resting on its surface is free, a toe inside a riser is not."""
+
+
+def lifted_geometries(
+    character: Character, contacts: Sequence[tuple[str, FloatArray]]
+) -> dict[int, FloatArray]:
+    """For each (limb, unit world normal (3,)) contact, the collision geometries carrying it,
+    mapped to the world displacement (3,) they are tested at (``CONTACT_LIFT`` along the
+    normal)."""
     exempt = body_geometry(character).exempt
-    out: set[int] = set()
-    for name in contact_limbs:
-        out |= exempt.get(name, frozenset())
-    return frozenset(out)
+    out: dict[int, FloatArray] = {}
+    for name, normal in contacts:
+        for g in exempt.get(name, frozenset()):
+            out[g] = CONTACT_LIFT * np.asarray(normal, dtype=np.float64)
+    return out
 
 
 def contact_placement(character: Character, limb: str, q: FloatArray, data: Any) -> FloatArray:

@@ -14,7 +14,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from planner.contact.body import contact_placement, contact_points, exempt_geometries
+from planner.contact.body import contact_placement, contact_points, lifted_geometries
 from planner.contact.context import ContactContext
 from planner.contact.state import ContactState, LimbContact
 from trajectory import (
@@ -181,22 +181,22 @@ def scene_collisions(
     ctx: ContactContext,
     q: FloatArray,
     only: Sequence[int] | NDArray[np.int64] | None = None,
-    contact_limbs: Sequence[str] = (),
+    contacts: Sequence[LimbContact] = (),
 ) -> list[str]:
     """Names of the character's collision geometries touching the scene or obstacles at q
-    (only the geometry indices ``only`` when given). The geometries carrying the contacts of
-    ``contact_limbs`` (the effector shapes at their contact points) are not tested: they
-    touch their surface by design, and their placement is checked by ``contact_on_surface``."""
+    (only the geometry indices ``only`` when given). The shapes carrying ``contacts`` touch
+    their surface by design: they are tested raised by ``CONTACT_LIFT`` along the contact
+    normal, so only a real intrusion (a toe in a riser) counts."""
     geometry = ctx.character.geometry
     pin.updateGeometryPlacements(ctx.model, ctx.pin_data, geometry, ctx.geom_data, q)
     objects = geometry.geometryObjects
     indices = range(len(objects)) if only is None else [int(i) for i in only]
-    skip = exempt_geometries(ctx.character, contact_limbs)
+    raised = lifted_geometries(ctx.character, [(c.limb, c.normal) for c in contacts])
     hits = []
     for i in indices:
-        if i in skip:
-            continue
-        placement = np.asarray(ctx.geom_data.oMg[i].homogeneous)
+        placement = np.array(ctx.geom_data.oMg[i].homogeneous)
+        if i in raised:
+            placement[:3, 3] += raised[i]
         if _collide(ctx, objects[i].geometry, placement):
             hits.append(str(objects[i].name))
     return hits
@@ -211,10 +211,12 @@ def self_collides(ctx: ContactContext, q: FloatArray) -> bool:
     )
 
 
-def collision_free(ctx: ContactContext, q: FloatArray, contact_limbs: Sequence[str] = ()) -> bool:
+def collision_free(
+    ctx: ContactContext, q: FloatArray, contacts: Sequence[LimbContact] = ()
+) -> bool:
     """No self-collision and no contact of the body with the scene or obstacles at ``q``,
-    the effector shapes of ``contact_limbs`` excepted (see :func:`scene_collisions`)."""
-    return not self_collides(ctx, q) and not scene_collisions(ctx, q, contact_limbs=contact_limbs)
+    the shapes carrying ``contacts`` tested as :func:`scene_collisions` says."""
+    return not self_collides(ctx, q) and not scene_collisions(ctx, q, contacts=contacts)
 
 
 def within_limits(ctx: ContactContext, q: FloatArray, tol: float = 1e-6) -> bool:
@@ -257,5 +259,5 @@ def check_state(ctx: ContactContext, state: ContactState, hold_tol: float = 1e-3
     margin = balance_margin(ctx, state.contacts, com)
     kin = kinematics_of(ctx, state.contacts)
     kin_ok = bool(kin.violation(com) <= _KIN_TOL)
-    free = collision_free(ctx, q, state.limbs)
+    free = collision_free(ctx, q, state.contacts)
     return StateReport(on, held, free, margin >= ctx.params.margin, kin_ok, margin, com)

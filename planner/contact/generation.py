@@ -497,7 +497,7 @@ def create_contact(
             if q2 is None:
                 worst = max(worst, why or FailureReason.NOT_BALANCED, key=_STAGE.__getitem__)
                 break
-            if not collision_free(ctx, q2, (*state.limbs, limb)):
+            if not collision_free(ctx, q2, (*state.contacts, contact)):
                 worst = max(worst, FailureReason.COLLISION, key=_STAGE.__getitem__)
                 resampled += 1
                 continue  # re-sample the limb posture
@@ -511,6 +511,21 @@ def create_contact(
                 break
             return ContactAttempt(True, new, None, tried, "", limb, cand.surface, resampled)
     return _fail(state, worst, limb, f"no candidate of {len(cands)} passed", len(cands))
+
+
+def _lift_offsets(lift: float, normal: FloatArray) -> list[FloatArray]:
+    """Effector displacements (3,) tried when releasing a contact: ``lift`` m along the
+    surface ``normal``, then half of it, then the same lift tilted 45 degrees toward each of
+    four horizontal directions (away from a riser or a wall next to the contact)."""
+    n = np.asarray(normal, dtype=np.float64)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    u = np.cross(n, helper)
+    u /= np.linalg.norm(u)
+    v = np.cross(n, u)
+    out = [lift * n, 0.5 * lift * n]
+    for side in (u, -u, v, -v):
+        out.append(lift * (n + side) / np.sqrt(2.0))
+    return out
 
 
 def break_contact(ctx: ContactContext, state: ContactState, limb: str) -> ContactAttempt:
@@ -547,20 +562,23 @@ def break_contact(ctx: ContactContext, state: ContactState, limb: str) -> Contac
         )
         return _fail(state, FailureReason.NOT_BALANCED, limb, msg, 1)
     spec = ctx.character.limb(limb)
-    lifted = old.placement[:3, 3] + ctx.params.lift * old.normal
-    res2 = balance_ik(
-        ctx,
-        q1,
-        after,
-        com1,
-        extra=[FramePositionTask(spec.frame_id, lifted, np.zeros(3), Priority.EFFECTOR)],
-        moving=(limb,),
-    )
-    q2 = np.array(res2.q)
-    new = ContactState(q2, after)
-    report = check_state(ctx, new)
-    if not report.valid or kin_before.violation(report.com) > 1e-3:
-        new = ContactState(q1, after)
+    new, report = ContactState(q1, after), None
+    for offset in _lift_offsets(ctx.params.lift, old.normal):
+        lifted = old.placement[:3, 3] + offset
+        res2 = balance_ik(
+            ctx,
+            q1,
+            after,
+            com1,
+            extra=[FramePositionTask(spec.frame_id, lifted, np.zeros(3), Priority.EFFECTOR)],
+            moving=(limb,),
+        )
+        candidate = ContactState(np.array(res2.q), after)
+        report = check_state(ctx, candidate)
+        if report.valid and kin_before.violation(report.com) <= 1e-3:
+            new = candidate
+            break
+    else:
         report = check_state(ctx, new)
     if kin_before.violation(report.com) > 1e-3:  # 2PAC: the COM must serve both sets
         return _fail(state, FailureReason.NOT_BALANCED, limb, "COM out of reach", 1)

@@ -5,7 +5,8 @@ COM trajectory and keyframes (DESIGN.md steps 3-8).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -101,6 +102,18 @@ def _resolve(
     return state_from_root_pose(scene, character, data, endpoint.root_pose, checker=checker)
 
 
+_RETRY_JITTERS = (0.05, 0.15, 0.3, 0.3)
+
+
+def _better(
+    new: PlanResult[tuple[ContactState, ...]], old: PlanResult[tuple[ContactState, ...]]
+) -> bool:
+    """Whether contact sequence ``new`` beats ``old``: solved, else further along the path."""
+    if (new.status is PlanStatus.SOLVED) != (old.status is PlanStatus.SOLVED):
+        return new.status is PlanStatus.SOLVED
+    return float(new.stats.get("progress_m", 0.0)) > float(old.stats.get("progress_m", 0.0))
+
+
 def _position(endpoint: Endpoint) -> FloatArray:
     """The world position (3,) an endpoint names."""
     if endpoint.state is not None:
@@ -160,31 +173,39 @@ def plan_contact_motion(
         plan = ContactPlan((start_state.value,), empty_path, None, timings)
         return PlanResult(status, plan, {}, f"goal: {goal_state.message}")
 
-    path = plan_root_path(
-        checker,
-        _root_pose(character, start_state.value.q),
-        _root_pose(character, goal_state.value.q),
-        rng=rng,
-        until=until,
-        step=opts.step,
-    )
-    lap("root_path")
-    if not path.status or path.value is None:
-        plan = ContactPlan((start_state.value,), empty_path, None, timings)
-        return PlanResult(path.status, plan, dict(path.stats), path.message)
-    poses = path.value.resample(opts.sequence.spacing)
-
     ctx = make_context(scene, character, data, opts.contact)
-    sequence = contact_sequence(
-        ctx,
-        start_state.value,
-        poses,
-        goal_state.value,
-        rng=rng,
-        until=until,
-        params=opts.sequence,
-    )
-    lap("contacts")
+    best: tuple[PlanResult[tuple[ContactState, ...]], FloatArray, PlanResult[Any]] | None = None
+    attempts = 0
+    for jitter in _RETRY_JITTERS:
+        # A stuck walk is retried on a new guide path with noisier foothold choices; the
+        # best attempt (SOLVED, else the furthest along) is kept.
+        if best is not None and (best[0].status is PlanStatus.SOLVED or until()):
+            break
+        attempts += 1
+        path = plan_root_path(
+            checker,
+            _root_pose(character, start_state.value.q),
+            _root_pose(character, goal_state.value.q),
+            rng=rng,
+            until=until,
+            step=opts.step,
+        )
+        lap("root_path")
+        if not path.status or path.value is None:
+            if best is None:
+                plan = ContactPlan((start_state.value,), empty_path, None, timings)
+                return PlanResult(path.status, plan, dict(path.stats), path.message)
+            break
+        poses = path.value.resample(opts.sequence.spacing)
+        params = replace(opts.sequence, jitter=max(opts.sequence.jitter, jitter))
+        sequence = contact_sequence(
+            ctx, start_state.value, poses, goal_state.value, rng=rng, until=until, params=params
+        )
+        lap("contacts")
+        if best is None or _better(sequence, best[0]):
+            best = (sequence, poses, path)
+    assert best is not None
+    sequence, poses, path = best
     states = sequence.value or (start_state.value,)
     # Keyframes get their own budget share so a plan that used its time still animates.
     motion_deadline = Deadline(max(until.remaining(), 0.25 * time_budget_s))
@@ -193,5 +214,5 @@ def plan_contact_motion(
     status = sequence.status
     if status is PlanStatus.TIMEOUT and len(states) > 1:
         status = PlanStatus.APPROXIMATE
-    stats = {**path.stats, **sequence.stats}
+    stats = {**path.stats, **sequence.stats, "attempts": attempts}
     return PlanResult(status, ContactPlan(states, poses, motion, timings), stats, sequence.message)

@@ -47,7 +47,8 @@ class SequenceParams:
     toward per gait cycle. min_step : m, a limb closer than this to its foothold does not
     step. goal_tolerance : m, a contact this close to the goal's counts as reached.
     max_states : cap on emitted states. max_stuck : gait cycles in a row with neither body
-    progress nor a step before giving up.
+    progress nor a step before giving up. jitter : m, scale of the random term added to the
+    scores of contact candidates (``create_contact``'s ``randomness``); retries raise it.
     """
 
     spacing: float = 0.05
@@ -57,6 +58,7 @@ class SequenceParams:
     goal_tolerance: float = 0.03
     max_states: int = 200
     max_stuck: int = 3
+    jitter: float = 0.05
 
     def __post_init__(self) -> None:
         if not 0 < self.spacing <= 0.5:
@@ -67,6 +69,8 @@ class SequenceParams:
             raise ValueError("advance must be in (0, 1] m")
         if not 0 < self.min_step <= 0.5:
             raise ValueError("min_step must be in (0, 0.5] m")
+        if not 0 <= self.jitter <= 1.0:
+            raise ValueError("jitter must be in [0, 1] m")
         if not 0 < self.max_states <= 10_000:
             raise ValueError("max_states must be in [1, 10000]")
 
@@ -198,7 +202,7 @@ def contact_sequence(
             out.update({c.limb: c.position for c in goal.contacts})
         return out
 
-    def step(limb: str, target: FloatArray) -> bool:
+    def step(limb: str, target: FloatArray, reposition: bool = False) -> bool:
         nonlocal current
         old = current.contact(limb)
         base = current
@@ -212,12 +216,16 @@ def contact_sequence(
             before = np.inf
         for fraction in _STEP_FRACTIONS:
             aim = target if old is None else old.position + fraction * (target - old.position)
-            made = create_contact(ctx, base, limb, rng=rng, target=aim)
+            made = create_contact(ctx, base, limb, rng=rng, target=aim, randomness=p.jitter)
             if not made.ok:
                 continue
             placed = made.state.contact(limb)
             assert placed is not None
-            if float(np.linalg.norm(placed.position - target)) > before - 0.5 * p.min_step:
+            if reposition:
+                assert old is not None
+                if float(np.linalg.norm(placed.position - old.position)) < 0.02:
+                    continue  # put back where it was: nothing gained
+            elif float(np.linalg.norm(placed.position - target)) > before - 0.5 * p.min_step:
                 continue  # not a step toward the foothold
             if base is not current:
                 states.append(base)
@@ -269,6 +277,19 @@ def contact_sequence(
                 turn = (order.index(limb) + 1) % len(order)
                 stepped = True
                 break
+        if not stepped and not moved:
+            # reposition: a limb on its foothold may still block the body (a shin against a
+            # rock after the body moved); put each down again somewhere near its foothold
+            for limb in rotation:
+                if (
+                    limb not in candidates
+                    and gaps[limb] < np.inf
+                    and step(limb, wanted[limb], reposition=True)
+                ):
+                    turn = (order.index(limb) + 1) % len(order)
+                    stepped = True
+                    stats["repositions"] = int(stats.get("repositions", 0)) + 1
+                    break
         if stepped or moved:
             stuck = 0
             continue

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -18,10 +19,13 @@ import trajectory
 from planner.character import Character
 from planner.contact.state import ContactState, LimbContact
 from planner.kinematics import (
+    ComTask,
     FramePlacementTask,
     FramePositionTask,
+    PostureTask,
     com_position,
     frame_placement,
+    solve_ik,
     swing_trajectory,
     track_com,
 )
@@ -123,6 +127,47 @@ def _last_placement(
     return frame_placement(character.model, q, character.limb(limb).effector_frame)
 
 
+_HOLD_REPAIR = 0.005  # m, a keyframe whose stance slipped more than this is re-solved
+
+
+def _hold_first(
+    model: Any,
+    q: FloatArray,
+    stance: Sequence[FramePlacementTask | FramePositionTask],
+    com: FloatArray,
+) -> tuple[FloatArray, float]:
+    """Re-solve a keyframe whose stance contacts slipped: contacts and the COM target first;
+    if the contacts still slip, contacts alone with the posture kept near ``q`` (the COM then
+    leaves its curve; the report's COM error says by how much). Returns the configuration
+    and its largest contact error (m)."""
+    attempts: list[list[Any]] = [[*stance, ComTask(com)], list(stance)]
+    best_q, best_err = q, _stance_error(model, q, stance)
+    for tasks in attempts:
+        weights = np.ones(model.nv)
+        weights[:6] = 0.0
+        result = solve_ik(
+            model, best_q, [*tasks, PostureTask(q, weights, gain=0.3)], max_iterations=200
+        )
+        err = _stance_error(model, np.asarray(result.q), stance)
+        if err < best_err:
+            best_q, best_err = np.array(result.q), err
+        if best_err <= _HOLD_REPAIR:
+            break
+    return best_q, best_err
+
+
+def _stance_error(
+    model: Any, q: FloatArray, stance: Sequence[FramePlacementTask | FramePositionTask]
+) -> float:
+    """Largest distance (m) of a stance frame from its target at ``q``."""
+    worst = 0.0
+    for task in stance:
+        frame = frame_placement(model, q, task.frame)
+        target = task.target if task.target.shape == (3,) else task.target[:3, 3]
+        worst = max(worst, float(np.linalg.norm(frame[:3, 3] - target)))
+    return worst
+
+
 def sequence_motion(
     character: Character,
     data: OfflineData,
@@ -190,6 +235,7 @@ def sequence_motion(
     contact_error = 0.0
     com_error = 0.0
     animated = 0
+    repaired = 0
     q = np.array(states[0].q, dtype=np.float64)
     for k, state in enumerate(states):
         if until():
@@ -222,13 +268,19 @@ def sequence_motion(
             rate=rate,
         )
         first = 0 if k == 0 or not keyframes else 1
-        for t, qk in zip(track.times[first:], track.configurations[first:], strict=True):
+        stance = _stance_tasks(character, state.contacts)
+        configurations = []
+        for t, qk, err in zip(track.times, track.configurations, track.contact_errors, strict=True):
+            if err > _HOLD_REPAIR:
+                qk, err = _hold_first(model, np.array(qk), stance, com_at(float(t)))
+                repaired += 1
+            contact_error = max(contact_error, float(err))
+            configurations.append(qk)
+        for t, qk in zip(track.times[first:], configurations[first:], strict=True):
             keyframes.append(Keyframe(t=float(t), q=np.array(qk), contacts=state.limbs))
-        if len(track.contact_errors):
-            contact_error = max(contact_error, float(np.max(track.contact_errors)))
         if len(track.com_errors):
             com_error = max(com_error, float(np.max(track.com_errors)))
-        q = np.array(track.configurations[-1], dtype=np.float64)
+        q = np.array(configurations[-1], dtype=np.float64)
         animated += 1
 
     report: dict[str, object] = {
@@ -237,6 +289,7 @@ def sequence_motion(
         "quasi_static_feasible": bool(com_trajectory.quasi_static_feasible),
         "transition_slack": [float(t.slack) for t in com_trajectory.transitions],
         "max_contact_error_m": contact_error,
+        "keyframes_repaired": repaired,
         "max_com_error_m": com_error,
         "dynamic_validity": [
             {

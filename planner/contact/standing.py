@@ -22,7 +22,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from planner.character import Character, Limb
-from planner.contact.body import body_geometry, contact_placement, contact_points, exempt_geometries
+from planner.contact.body import body_geometry, contact_placement, contact_points, lifted_geometries
 from planner.contact.reachability import ReachabilityChecker, ground_limbs
 from planner.contact.state import ContactState, LimbContact
 from planner.kinematics import (
@@ -75,23 +75,22 @@ class StandingParams:
 
 
 def body_collides_scene(
-    scene: Scene, character: Character, q: FloatArray, contact_limbs: Sequence[str] = ()
+    scene: Scene, character: Character, q: FloatArray, contacts: Sequence[LimbContact] = ()
 ) -> bool:
-    """Whether the character's collision geometry at ``q`` (nq,) touches the scene mesh, the
-    geometry carrying the contacts of ``contact_limbs`` excepted."""
+    """Whether the character's collision geometry at ``q`` (nq,) touches the scene mesh; the
+    shapes carrying ``contacts`` are tested raised by ``CONTACT_LIFT`` along their normal."""
     body = body_geometry(character)
     model = character.model
     data = scratch_data(model)
     pin.forwardKinematics(model, data, np.asarray(q, dtype=np.float64))
-    skip = exempt_geometries(character, contact_limbs)
+    raised = lifted_geometries(character, [(c.limb, c.normal) for c in contacts])
     bvh = scene.collision.bvh
     identity = coal.Transform3s()
     request, result = coal.CollisionRequest(), coal.CollisionResult()
     for g, (parent, geometry, offset) in enumerate(body.objects):
-        if g in skip:
-            continue
         world = data.oMi[parent] * offset
-        tf = coal.Transform3s(np.array(world.rotation), np.array(world.translation))
+        position = np.array(world.translation) + raised.get(g, np.zeros(3))
+        tf = coal.Transform3s(np.array(world.rotation), position)
         result.clear()
         if coal.collide(bvh, identity, geometry, tf, request, result):
             return True
@@ -253,7 +252,7 @@ def state_from_root_pose(
         if not contact_on_surface(contact, surface, limb):
             return _fail(f"{limb.name} is not fully on surface {surface.id}")
         contacts.append(contact)
-    if body_collides_scene(scene, character, q, names):
+    if body_collides_scene(scene, character, q, contacts):
         return _fail("the body collides with the scene")
     if self_collides(character, q):
         return _fail("the body collides with itself")

@@ -173,7 +173,7 @@ def step_motion(
             q = np.array(configs[-1])
         qs[0] = np.array(before.q)
         qs[-1] = np.array(after.q)
-        held = tuple(x for x in before.limbs if x in after.limbs)
+        held = tuple(c for c in before.contacts if c.limb in after.limbs)
         hits = _colliding(ctx, qs, spec_geoms, held)
         if best is None or hits < best[3]:
             best = (qs, ts, worst_hold, hits, lift)
@@ -223,7 +223,7 @@ def limb_geometries(ctx: ContactContext, limb: str) -> NDArray[np.int64]:
 
 
 def _colliding(
-    ctx: ContactContext, qs: list[FloatArray], swing: NDArray[np.int64], stance: Sequence[str]
+    ctx: ContactContext, qs: list[FloatArray], swing: NDArray[np.int64], stance: Sequence[Any]
 ) -> int:
     """Interior keyframes with a collision: self-collision and the swing limb's shapes
     against the scene at every keyframe, the whole body (the effector shapes of the ``stance``
@@ -231,7 +231,7 @@ def _colliding(
     hits = 0
     for i, q in enumerate(qs[1:-1], start=1):
         only = None if i % _FULL_CHECK_STRIDE == 0 else swing
-        hit = scene_collisions(ctx, q, only, contact_limbs=stance)
+        hit = scene_collisions(ctx, q, only, contacts=stance)
         hits += int(self_collides(ctx, q) or bool(hit))
     return hits
 

@@ -140,7 +140,7 @@ def test_deadline_builds_a_partial_roadmap_and_still_answers() -> None:
     from planner.termination import Deadline
 
     scene, character, data = _setup("quadruped")
-    params = JumpParams(n_nodes=5000)
+    params = JumpParams(n_nodes=200_000)  # far more than 3 s can build
     start, goal = np.array([-1.0, 0.0, 0.0]), np.array([-2.5, 0.5, 0.0])
     result = plan_jumps(
         scene,
@@ -154,7 +154,7 @@ def test_deadline_builds_a_partial_roadmap_and_still_answers() -> None:
     )
     assert result.status is PlanStatus.SOLVED, result.message
     assert result.value is not None
-    assert len(result.value.roadmap.nodes) < 5000
+    assert len(result.value.roadmap.nodes) < 200_000
     assert result.value.roadmap.stats["stopped"] == 1
 
 

@@ -1,11 +1,13 @@
-"""Unit tests of the contact-sequence walker helpers and parameters."""
+"""Unit tests of the contact-sequence walker: parameters, gait order and the guide path."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
-from planner.contact.sequence import SequenceParams, _heading, _toward
+from planner.contact.sequence import SequenceParams, _Guide, gait_order
 
 
 def _line(n: int, step: float) -> np.ndarray:
@@ -15,36 +17,38 @@ def _line(n: int, step: float) -> np.ndarray:
     return poses
 
 
-def test_params_validated() -> None:
-    with pytest.raises(ValueError):
-        SequenceParams(spacing=0.0)
-    with pytest.raises(ValueError):
-        SequenceParams(max_states=0)
-    assert SequenceParams().stride > 0
+@pytest.mark.parametrize(
+    "field, value",
+    [("spacing", 0.0), ("max_states", 0), ("lookahead", 3.0), ("advance", 0.0), ("jitter", 2.0)],
+)
+def test_params_out_of_range_are_refused(field: str, value: float) -> None:
+    with pytest.raises(ValueError, match=field):
+        SequenceParams(**{field: value})
 
 
-def test_heading_is_unit_and_horizontal() -> None:
-    poses = _line(10, 0.05)
-    poses[:, 2, 3] = np.linspace(0.9, 1.2, 10)  # climbing path
-    h = _heading(poses, 3)
-    assert h[2] == 0.0
-    assert np.isclose(np.linalg.norm(h), 1.0)
-    assert h[0] > 0.99
+def test_gait_order_is_a_crawl_for_four_legs_and_alternates_for_two() -> None:
+    legs = {
+        "lf": np.array([0.3, 0.2, -0.5]),
+        "rf": np.array([0.3, -0.2, -0.5]),
+        "lh": np.array([-0.3, 0.2, -0.5]),
+        "rh": np.array([-0.3, -0.2, -0.5]),
+    }
+    assert gait_order(legs, ["lf", "rf", "lh", "rh"]) == ("lh", "lf", "rh", "rf")
+    feet = {"l": np.array([0.0, 0.1, -0.9]), "r": np.array([0.0, -0.1, -0.9])}
+    assert gait_order(feet, ["r", "l"]) == ("l", "r")
 
 
-def test_heading_of_a_standing_path_follows_the_root_axis() -> None:
-    poses = np.repeat(np.eye(4)[None], 3, axis=0)
-    assert np.allclose(_heading(poses, 1), [1.0, 0.0, 0.0])
+def test_guide_interpolates_positions_and_clamps() -> None:
+    guide = _Guide.of(_line(11, 0.1))
+    assert np.isclose(guide.length, 1.0)
+    assert np.allclose(guide.at(0.25)[:3, 3], [0.25, 0.0, 0.9])
+    assert np.allclose(guide.at(-1.0)[:3, 3], [0.0, 0.0, 0.9])
+    assert np.allclose(guide.at(5.0)[:3, 3], [1.0, 0.0, 0.9])
 
 
-def test_toward_limits_the_root_jump() -> None:
-    q = np.zeros(10)
-    q[:3] = [0.0, 0.0, 0.8]
-    q[6] = 1.0
-    pose = np.eye(4)
-    pose[:3, 3] = [0.5, 0.0, 0.9]
-    out = _toward(q, pose, 0.05)
-    assert np.isclose(np.linalg.norm(out[:3, 3] - q[:3]), 0.075)
-    near = np.eye(4)
-    near[:3, 3] = [0.03, 0.0, 0.8]
-    assert np.allclose(_toward(q, near, 0.05), near)
+@given(st.floats(0.0, 1.0), st.floats(-0.2, 0.2))
+def test_guide_progress_is_the_nearest_sample_and_never_far_behind(x: float, y: float) -> None:
+    guide = _Guide.of(_line(21, 0.05))
+    s = guide.progress(np.array([x, y, 0.9]), 0.0)
+    assert abs(s - x) <= 0.025 + 1e-9
+    assert guide.progress(np.array([0.0, 0.0, 0.9]), 0.8) >= 0.5 - 1e-9

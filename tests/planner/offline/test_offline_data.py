@@ -54,7 +54,9 @@ def _com_in_effector_frames(character: Character, q: np.ndarray) -> list[np.ndar
     out = []
     for limb in character.limbs:
         oMf = data.oMf[limb.frame_id]
-        out.append(np.asarray(oMf.rotation).T @ (com - oMf.translation))
+        # patch contacts: the effector frame; point contacts: the root frame's axes
+        axes = oMf.rotation if limb.contact == "patch" else data.oMi[1].rotation
+        out.append(np.asarray(axes).T @ (com - oMf.translation))
     return out
 
 

@@ -1,103 +1,129 @@
-"""End-to-end contact plans on the scenario JSON files that the planner solves reliably."""
+"""End-to-end contact plans on the scenario JSON files of this folder.
+
+A scenario with ``"solved": true`` must be SOLVED at its seed, and its plan must satisfy the
+invariants of the issue: every state's contacts on their surfaces, nothing colliding, static
+equilibrium with the margin, consecutive states one contact apart with the others unmoved,
+keyframes holding the stance contacts within 1 cm and within the joint limits, the COM curve
+inside the kinematic polytopes, and the same seed giving the same plan. Scenarios marked
+``"solved": false`` are measured by ``bench/planner.py`` only.
+"""
 
 from __future__ import annotations
 
 import json
+from math import comb
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
 from planner.character import get_character
-from planner.contact.checks import check_state, hold_error, within_limits
+from planner.contact.checks import check_state, contact_on_surface, hold_error, within_limits
 from planner.contact.context import make_context
 from planner.contact.planner import ContactPlan, Endpoint, plan_contact_motion
 from planner.contact.sequence_motion import phase_kinematics
+from planner.contact.state import ContactState
 from planner.offline import load_offline_data
 from planner.result import PlanResult, PlanStatus
-from planner.scene import load_builtin_scene
+from planner.scene import Scene
 from tests.paths import gecko_cache_dir
+from tests.scenarios.jumps.scenes import load_scenario_scene
 
 HERE = Path(__file__).parent
-# scenario file stem -> seed that solves it (the other scenarios are not reliable yet)
-SOLVED = {"flat_walk_humanoid": 3}
+SPECS = {p.stem: json.loads(p.read_text()) for p in sorted(HERE.glob("*.json"))}
+SOLVED = sorted(name for name, spec in SPECS.items() if spec.get("solved", True))
 
 
 def _endpoint(spec: dict[str, list[float]]) -> Endpoint:
-    return Endpoint(stand_at=np.asarray(spec["stand_at"], dtype=np.float64))
+    if "stand_at" in spec:
+        return Endpoint(stand_at=np.asarray(spec["stand_at"], dtype=np.float64))
+    pose = np.eye(4)
+    pose[:3, 3] = spec["position"]
+    return Endpoint(root_pose=pose)
 
 
-def _plan(name: str) -> tuple[PlanResult[ContactPlan], object, object, object]:
-    spec = json.loads((HERE / f"{name}.json").read_text())
+def scenario_scene(spec: dict[str, Any]) -> Scene | None:
+    """The scene of a scenario: a built-in id, or a ``{"kind", "name"}`` entry."""
+    entry = spec["scene"]
+    if isinstance(entry, str):
+        entry = {"kind": "builtin", "name": entry}
+    return load_scenario_scene(entry)
+
+
+def _plan(name: str) -> tuple[PlanResult[ContactPlan], Any, Any, Any]:
+    spec = SPECS[name]
+    scene = scenario_scene(spec)
+    if scene is None:
+        pytest.skip(f"scene of {name} not installed (hpp-environments)")
     character = get_character(spec["character"])
     data = load_offline_data(character, gecko_cache_dir())
-    scene = load_builtin_scene(spec["scene"], gecko_cache_dir())
     result = plan_contact_motion(
         scene,
         character,
         data,
         _endpoint(spec["start"]),
         _endpoint(spec["goal"]),
-        rng=np.random.default_rng(SOLVED[name]),
+        rng=np.random.default_rng(int(spec["seed"])),
         time_budget_s=float(spec["time_budget_s"]),
     )
     return result, scene, character, data
 
 
-@pytest.fixture(scope="module", params=sorted(SOLVED))
-def planned(
-    request: pytest.FixtureRequest,
-) -> tuple[str, PlanResult[ContactPlan], object, object, object]:
+@pytest.fixture(scope="module", params=SOLVED)
+def planned(request: pytest.FixtureRequest) -> tuple[str, PlanResult[ContactPlan], Any, Any, Any]:
     return (request.param, *_plan(request.param))
 
 
-def test_solved_and_states_valid(planned) -> None:  # type: ignore[no-untyped-def]
+def test_solved_and_every_state_valid(planned) -> None:  # type: ignore[no-untyped-def]
     _, result, scene, character, data = planned
     assert result.status is PlanStatus.SOLVED, result.message
     plan = result.value
-    assert plan is not None
+    assert plan is not None and len(plan.states) >= 3
     ctx = make_context(scene, character, data)
-    # the start comes from the standing-state search (its own collision model); every
-    # state the contact sequence makes must pass the contact checks
-    for state in plan.states[1:]:
+    for state in plan.states:
         report = check_state(ctx, state)
         assert report.valid, report
+        for contact in state.contacts:
+            assert contact_on_surface(ctx, contact)
+            surface = scene.surfaces[contact.surface]
+            assert np.abs(surface.height(contact.points)).max() <= 0.005
+            assert float(contact.normal @ surface.normal) >= np.cos(np.radians(5.0))
     for before, after in zip(plan.states, plan.states[1:], strict=False):
-        a = {c.limb for c in before.contacts}
-        b = {c.limb for c in after.contacts}
-        assert len(a ^ b) == 1
-        for limb in a & b:
-            pa = before.contact(limb).position
-            pb = after.contact(limb).position
-            assert np.allclose(pa, pb, atol=1e-6)
+        assert before.differs_by_one(after)
 
 
-def test_keyframes_and_com(planned) -> None:  # type: ignore[no-untyped-def]
+def test_goal_contacts_reached(planned) -> None:  # type: ignore[no-untyped-def]
+    name, result, *_ = planned
+    plan = result.value
+    assert plan is not None
+    goal = np.asarray(SPECS[name]["goal"].get("stand_at", [np.nan] * 3))
+    last = plan.states[-1]
+    if np.all(np.isfinite(goal)):
+        centre = np.mean([c.position for c in last.contacts], axis=0)
+        assert np.linalg.norm(centre[:2] - goal[:2]) <= 0.15
+
+
+def test_keyframes_hold_contacts_and_com_stays_in_kinematic_polytopes(planned) -> None:  # type: ignore[no-untyped-def]
     _, result, scene, character, data = planned
     plan = result.value
     assert plan is not None and plan.motion is not None
     ctx = make_context(scene, character, data)
     phases = plan.motion.phases
+    assert plan.motion.keyframes
     for key in plan.motion.keyframes:
         assert within_limits(ctx, np.asarray(key.q), tol=1e-4)
         phase = next((ph for ph in phases if ph.t0 - 1e-9 <= key.t <= ph.t1 + 1e-9), None)
-        if phase is None:
-            continue
+        assert phase is not None
         held = [c for c in phase.contacts if c.limb in key.contacts]
         assert hold_error(ctx, np.asarray(key.q), held) <= 0.01
-    by_contacts = {tuple(sorted(c.limb for c in s.contacts)): s for s in plan.states}
     for seg in plan.motion.com:
-        phase = next(ph for ph in phases if ph.t0 - 1e-9 <= 0.5 * (seg.t0 + seg.t1) <= ph.t1 + 1e-9)
-        state = by_contacts.get(tuple(sorted(c.limb for c in phase.contacts)))
-        if state is None:
-            continue
-        kin = phase_kinematics(data, type(state)(state.q, phase.contacts))
-        if kin is None:
-            continue
+        mid = 0.5 * (seg.t0 + seg.t1)
+        phase = next(ph for ph in phases if ph.t0 - 1e-9 <= mid <= ph.t1 + 1e-9)
+        kin = phase_kinematics(data, ContactState(plan.states[0].q, phase.contacts))
+        assert kin is not None
         n = len(seg.control_points) - 1
-        for s in np.linspace(0.0, 1.0, 5):
-            from math import comb
-
+        for s in np.linspace(0.0, 1.0, 7):
             point = sum(
                 comb(n, i) * (1 - s) ** (n - i) * s**i * seg.control_points[i] for i in range(n + 1)
             )
@@ -112,3 +138,4 @@ def test_same_seed_same_plan(planned) -> None:  # type: ignore[no-untyped-def]
     assert len(again.value.states) == len(result.value.states)
     for a, b in zip(result.value.states, again.value.states, strict=True):
         assert np.array_equal(a.q, b.q)
+    assert len(again.value.motion.keyframes) == len(result.value.motion.keyframes)
