@@ -33,6 +33,7 @@ class BodyGeometry:
 
     objects: tuple[tuple[int, object, pin.SE3], ...]  # (parent joint, coal geometry, placement)
     exempt: dict[str, frozenset[int]]
+    depth: dict[tuple[str, int], float]  # (limb, geometry): m the shape reaches below the sole
 
 
 _GEOMETRY: dict[int, tuple[Character, BodyGeometry]] = {}  # characters are few and memoised
@@ -49,11 +50,15 @@ def body_geometry(character: Character) -> BodyGeometry:
     objects = tuple((int(o.parentJoint), o.geometry, o.placement) for o in gmodel.geometryObjects)
     request, result = coal.DistanceRequest(), coal.DistanceResult()
     exempt: dict[str, frozenset[int]] = {}
+    depth: dict[tuple[str, int], float] = {}
     grounded = ground_limbs(character)
     for limb in character.limbs:
         placement = data.oMf[limb.frame_id]
         points = limb.contact_points() @ np.array(placement.rotation).T + placement.translation
         joint = int(model.frames[limb.frame_id].parentJoint)
+        normal = np.array(placement.rotation) @ np.asarray(limb.normal, dtype=np.float64)
+        normal /= np.linalg.norm(normal)
+        sole = float((points @ normal).min())
         near = set()
         for g, (parent, geometry, offset) in enumerate(objects):
             if parent != joint:
@@ -65,7 +70,9 @@ def body_geometry(character: Character) -> BodyGeometry:
             box = np.array(
                 [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
             )
-            lowest = float((box @ np.array(world.rotation).T + world.translation)[:, 2].min())
+            corners = box @ np.array(world.rotation).T + world.translation
+            lowest = float(corners[:, 2].min())
+            depth[(limb.name, g)] = max(0.0, sole - float((corners @ normal).min()))
             if limb.name in grounded and lowest < EXEMPT_DISTANCE:
                 near.add(g)
             for point in points:
@@ -75,7 +82,7 @@ def body_geometry(character: Character) -> BodyGeometry:
                 if d < EXEMPT_DISTANCE:
                     near.add(g)
         exempt[limb.name] = frozenset(near)
-    out = BodyGeometry(objects, exempt)
+    out = BodyGeometry(objects, exempt, depth)
     if len(_GEOMETRY) > 64:
         _GEOMETRY.clear()
     _GEOMETRY[key] = (character, out)
@@ -91,13 +98,15 @@ def lifted_geometries(
     character: Character, contacts: Sequence[tuple[str, FloatArray]]
 ) -> dict[int, FloatArray]:
     """For each (limb, unit world normal (3,)) contact, the collision geometries carrying it,
-    mapped to the world displacement (3,) they are tested at (``CONTACT_LIFT`` along the
-    normal)."""
-    exempt = body_geometry(character).exempt
+    mapped to the world displacement (3,) they are tested at: along the normal, by
+    ``CONTACT_LIFT`` plus how far the shape reaches below the sole (a bounding capsule of a
+    real robot's foot may hang 5 cm under it)."""
+    body = body_geometry(character)
     out: dict[int, FloatArray] = {}
     for name, normal in contacts:
-        for g in exempt.get(name, frozenset()):
-            out[g] = CONTACT_LIFT * np.asarray(normal, dtype=np.float64)
+        for g in body.exempt.get(name, frozenset()):
+            lift = CONTACT_LIFT + body.depth.get((name, g), 0.0)
+            out[g] = lift * np.asarray(normal, dtype=np.float64)
     return out
 
 
