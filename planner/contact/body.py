@@ -40,6 +40,10 @@ _GEOMETRY: dict[int, tuple[Character, BodyGeometry]] = {}  # characters are few 
 
 
 def body_geometry(character: Character) -> BodyGeometry:
+    """The character's collision objects, which of them carry each limb's contact (those on
+    the effector's link within ``EXEMPT_DISTANCE`` of its contact points, or of the ground for
+    ground limbs) and how deep each reaches below the sole, all measured in ``q_ref``;
+    memoised per character."""
     key = id(character)
     hit = _GEOMETRY.get(key)
     if hit is not None and hit[0] is character:

@@ -51,6 +51,7 @@ from planner.kinematics import (
     solve_ik,
 )
 from planner.scene import Surface
+from planner.scene.geometry2d import plane_basis
 from trajectory import Halfspaces, transition_point
 
 FloatArray = NDArray[np.float64]
@@ -517,13 +518,9 @@ def _lift_offsets(lift: float, normal: FloatArray) -> list[FloatArray]:
     """Effector displacements (3,) tried when releasing a contact: ``lift`` m along the
     surface ``normal``, then half of it, then the same lift tilted 45 degrees toward each of
     four horizontal directions (away from a riser or a wall next to the contact)."""
-    n = np.asarray(normal, dtype=np.float64)
-    helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    u = np.cross(n, helper)
-    u /= np.linalg.norm(u)
-    v = np.cross(n, u)
+    u, v, n = plane_basis(np.asarray(normal, dtype=np.float64))
     out = [lift * n, 0.5 * lift * n]
-    for side in (u, -u, v, -v):
+    for side in (-u, u, -v, v):
         out.append(lift * (n + side) / np.sqrt(2.0))
     return out
 

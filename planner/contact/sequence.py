@@ -28,7 +28,13 @@ from numpy.typing import NDArray
 
 from planner.contact.checks import check_state
 from planner.contact.context import ContactContext
-from planner.contact.generation import break_contact, create_contact, hold_tasks, posture_task
+from planner.contact.generation import (
+    active_dofs,
+    break_contact,
+    create_contact,
+    hold_tasks,
+    posture_task,
+)
 from planner.contact.state import ContactState
 from planner.kinematics import FramePlacementTask, Priority, frame_placement, solve_ik
 from planner.result import PlanResult, PlanStatus
@@ -75,8 +81,10 @@ class SequenceParams:
             raise ValueError("max_states must be in [1, 10000]")
 
 
-def reference_offsets(ctx: ContactContext) -> dict[str, FloatArray]:
-    """Each limb's effector position (3,) in the root frame at the reference posture."""
+def _effector_offsets(ctx: ContactContext) -> dict[str, FloatArray]:
+    """Each limb's effector frame origin (3,) in the root frame at the reference posture (the
+    point a contact's ``position`` is; ``reachability.reference_offsets`` gives the contact
+    centre instead)."""
     q_ref = np.asarray(ctx.character.q_ref)
     root_inv = np.linalg.inv(frame_placement(ctx.model, q_ref, _ROOT_FRAME))
     out = {}
@@ -140,15 +148,7 @@ def advance_body(
         FramePlacementTask(_ROOT_FRAME, root_target, Priority.COM),
         posture_task(ctx),
     ]
-    active = np.flatnonzero(
-        ~np.isin(
-            np.arange(ctx.model.nv),
-            np.concatenate(
-                [np.zeros(0, dtype=np.int64)]
-                + [x.idx_v for x in ctx.character.limbs if state.contact(x.name) is None]
-            ),
-        )
-    )
+    active = active_dofs(ctx, state.limbs)  # free limbs stay as they are
     result = solve_ik(
         ctx.model,
         state.q,
@@ -179,7 +179,7 @@ def contact_sequence(
     """
     p = params or SequenceParams()
     guide = _Guide.of(np.asarray(poses, dtype=np.float64))
-    offsets = reference_offsets(ctx)
+    offsets = _effector_offsets(ctx)
     walking = list(start.limbs)
     if goal is not None:
         walking += [x for x in goal.limbs if x not in walking]
@@ -194,6 +194,19 @@ def contact_sequence(
         stats["states"] = len(states)
         stats["progress_m"] = round(s, 4)
         return PlanResult(status, tuple(states), dict(stats), message)
+
+    def finish() -> PlanResult[tuple[ContactState, ...]]:
+        # release the contacts the goal does not have
+        nonlocal current
+        extra = [] if goal is None else [x for x in current.limbs if goal.contact(x) is None]
+        for limb in extra:
+            released = break_contact(ctx, current, limb)
+            if not released.ok:
+                return result(PlanStatus.APPROXIMATE, f"{limb}: cannot release for the goal")
+            states.append(released.state)
+            current = released.state
+            stats["breaks"] = int(stats["breaks"]) + 1
+        return result(PlanStatus.SOLVED)
 
     def footholds(at: float) -> dict[str, FloatArray]:
         pose = guide.at(at)
@@ -268,7 +281,7 @@ def contact_sequence(
         if at_end and all(
             gaps[x] <= p.goal_tolerance for x in (goal.limbs if goal is not None else order)
         ):
-            return _finish(ctx, states, current, goal, stats, result)
+            return finish()
         rotation = order[turn:] + order[:turn]
         candidates = [x for x in rotation if gaps[x] > tol]
         stepped = False
@@ -300,28 +313,3 @@ def contact_sequence(
                 PlanStatus.APPROXIMATE,
                 f"stuck at {s:.2f} m of {guide.length:.2f} m; limbs off their footholds: {far}",
             )
-
-
-def _finish(
-    ctx: ContactContext,
-    states: list[ContactState],
-    current: ContactState,
-    goal: ContactState | None,
-    stats: dict[str, float | int | str],
-    result: object,
-) -> PlanResult[tuple[ContactState, ...]]:
-    """Release the contacts the goal does not have, then report SOLVED."""
-    assert callable(result)
-    if goal is not None:
-        for limb in [x for x in current.limbs if goal.contact(x) is None]:
-            released = break_contact(ctx, current, limb)
-            if not released.ok:
-                out: PlanResult[tuple[ContactState, ...]] = result(
-                    PlanStatus.APPROXIMATE, f"{limb}: cannot release for the goal"
-                )
-                return out
-            states.append(released.state)
-            current = released.state
-            stats["breaks"] = int(stats["breaks"]) + 1
-    done: PlanResult[tuple[ContactState, ...]] = result(PlanStatus.SOLVED)
-    return done
