@@ -85,8 +85,13 @@ def run_plan(request_json: str, seed: int) -> dict[str, Any]:
     request = schemas.PlanRequest.model_validate_json(request_json)
     entry = character_entry(request.character)
     scene = scene_by_id(request.scene)
+    limb_names = sorted(limb.name for limb in entry.character.limbs)
+    for name in request.options.limbs:
+        if name not in limb_names:
+            raise invalid(f"unknown limb '{name}'; expected some of {limb_names}", "options.limbs")
     options = PlanOptions(
         rate=request.options.rate,
+        limbs=tuple(request.options.limbs),
         sequence=SequenceParams(
             lookahead=request.options.lookahead, max_states=request.options.max_states
         ),

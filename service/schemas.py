@@ -362,6 +362,11 @@ class PlanOptionsIn(BaseModel):
         default=0.15, gt=0, le=2.0, description="m ahead of the body where footholds are aimed"
     )
     max_states: int = Field(default=200, ge=2, le=2000)
+    limbs: list[Annotated[str, Field(max_length=100)]] = Field(
+        default_factory=list,
+        max_length=16,
+        description="limbs the walk may use besides those of the start and goal (a hand on a rail)",
+    )
 
 
 class PlanRequest(BaseModel):

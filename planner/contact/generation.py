@@ -52,6 +52,7 @@ from planner.kinematics import (
 )
 from planner.scene import Surface
 from planner.scene.geometry2d import plane_basis
+from planner.shapes import Capsule
 from trajectory import Halfspaces, transition_point
 
 FloatArray = NDArray[np.float64]
@@ -204,21 +205,38 @@ def _cached_point(
 
 
 def _point_on(surface: Surface, desired: FloatArray, radius: float) -> FloatArray | None:
-    """A point of ``surface`` near ``desired`` (3,) with a disc of ``radius`` inside it: the
-    closest point moved toward the centroid in quarter steps until the disc fits."""
+    """A point of ``surface`` near ``desired`` (3,) with a disc of ``radius`` inside it.
+
+    From the closest point, the disc centre is pushed away from the nearest boundary point
+    until it clears the boundary by ``radius`` (a few pushes settle corners): a foot keeps
+    its place along a stair tread and only moves across it. Falls back to moving toward the
+    centroid in quarter steps.
+    """
     closest = surface.closest_point(desired[None])[0]
-    angles = np.linspace(0.0, 2 * np.pi, 8, endpoint=False)
-    ring = np.stack([np.cos(angles), np.sin(angles)], axis=1) * radius  # (8, 2)
-    steps = np.array([0.0, 0.25, 0.5, 0.75, 1.0])
-    centres = closest + steps[:, None] * (surface.centroid - closest)  # (5, 3)
-    coords = surface.to_plane(centres)[:, None, :] + ring[None]  # (5, 8, 2)
-    inside = surface.contains_projection(surface.from_plane(coords.reshape(-1, 2)))
-    fits = np.flatnonzero(inside.reshape(len(steps), -1).all(axis=1))
+    p = surface.to_plane(closest[None])[0]
+    for _ in range(6):
+        world = surface.from_plane(p[None])
+        if surface.contains_projection(world, margin=radius)[0]:
+            return _on_mesh(surface, world[0])
+        distance, nearest = surface.nearest_boundary(p[None])
+        away = p - nearest[0]
+        if distance[0] < 1e-6 or not surface.contains_projection(world)[0]:
+            away = -p  # on or outside the boundary: head for the centroid (plane origin)
+        norm = float(np.linalg.norm(away))
+        if norm < 1e-9:
+            break
+        p = nearest[0] + away / norm * (radius + 1e-3)
+    steps = np.array([0.25, 0.5, 0.75, 1.0])
+    centres = closest + steps[:, None] * (surface.centroid - closest)  # (4, 3)
+    fits = np.flatnonzero(surface.contains_projection(centres, margin=radius))
     if len(fits) == 0:
         return None
-    p = centres[int(fits[0])]
-    if surface.flatness > 1e-9:
-        p = surface.closest_point(p[None])[0]
+    return _on_mesh(surface, centres[int(fits[0])])
+
+
+def _on_mesh(surface: Surface, point: FloatArray) -> FloatArray:
+    """``point`` (3,) dropped onto the surface's triangles (read-only copy)."""
+    p = surface.closest_point(point[None])[0] if surface.flatness > 1e-9 else point
     out = np.array(p, dtype=np.float64)
     out.flags.writeable = False
     return out
@@ -274,6 +292,48 @@ def _clear_of(
     return None
 
 
+_HEADROOM = 0.1  # m of free space wanted above a contact point
+
+
+def _uncovered(ctx: ContactContext, sid: int, point: FloatArray, radius: float) -> bool:
+    """Whether the space just above ``point`` (3,) on surface ``sid`` is free: a capsule of
+    half the patch ``radius`` standing ``_HEADROOM`` m along the normal, starting just off the
+    surface, touches nothing (ground running under a slab or a stair is not a foothold)."""
+    key = ("uncovered", sid, radius, tuple(np.round(point, 2).tolist()))
+
+    def test() -> bool:
+        normal = ctx.scene.surfaces[sid].normal
+        r = 0.5 * radius
+        pose = np.eye(4)
+        pose[:3, :3] = plane_basis(normal).T
+        pose[:3, 3] = point + normal * (0.005 + r + 0.5 * _HEADROOM)
+        return not ctx.world.collides(Capsule(r, 0.5 * _HEADROOM), pose)
+
+    free: bool = ctx.cached(key, test)
+    return free
+
+
+def nearest_foothold(
+    ctx: ContactContext, limb: str, point: FloatArray, within: float = 0.5
+) -> FloatArray | None:
+    """The point (3,) of an allowed surface nearest to ``point`` (3,) where ``limb``'s contact
+    patch fits, searched within ``within`` m; None when there is none."""
+    radius = _patch_radius(ctx, limb)
+    best: FloatArray | None = None
+    best_gap = within
+    for sid in ctx.surfaces:
+        surface = ctx.scene.surfaces[sid]
+        if float(np.linalg.norm(surface.centroid - point)) - _bound(surface) > best_gap:
+            continue
+        found = _cached_point(ctx, sid, point, radius)
+        if found is None or not _uncovered(ctx, sid, found, radius):
+            continue
+        gap = float(np.linalg.norm(found - point))
+        if gap < best_gap:
+            best, best_gap = found, gap
+    return best
+
+
 @dataclass(frozen=True, slots=True)
 class _Candidate:
     score: float
@@ -315,7 +375,7 @@ def _candidates(
     out: list[_Candidate] = []
     for sid in ids[order].tolist():
         point = _cached_point(ctx, sid, desired, radius)
-        if point is None:
+        if point is None or not _uncovered(ctx, sid, point, radius):
             continue
         if np.linalg.norm(point - base) > reach:
             continue

@@ -45,12 +45,14 @@ class Endpoint:
 @dataclass(frozen=True, slots=True)
 class PlanOptions:
     """rate : keyframes per second. step : m between root-path checks (<= 0.05).
-    sequence : contact-sequence tuning. contact : contact-generation tuning."""
+    sequence : contact-sequence tuning. contact : contact-generation tuning. limbs : limbs
+    the walk may use besides those in contact at the start or goal (a hand on a handrail)."""
 
     rate: float = 30.0
     step: float = 0.05
     sequence: SequenceParams = field(default_factory=SequenceParams)
     contact: ContactParams = field(default_factory=ContactParams)
+    limbs: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True, slots=True)
@@ -147,6 +149,10 @@ def plan_contact_motion(
     are computed for whatever states were found, within the remaining budget.
     """
     opts = options or PlanOptions()
+    names = [limb.name for limb in character.limbs]
+    unknown = [x for x in opts.limbs if x not in names]
+    if unknown:
+        raise ValueError(f"options.limbs: unknown limbs {unknown}; expected some of {names}")
     until = Deadline(time_budget_s)
     timings: dict[str, float] = {}
     clock = time.perf_counter()
@@ -199,7 +205,14 @@ def plan_contact_motion(
         poses = path.value.resample(opts.sequence.spacing)
         params = replace(opts.sequence, jitter=max(opts.sequence.jitter, jitter))
         sequence = contact_sequence(
-            ctx, start_state.value, poses, goal_state.value, rng=rng, until=until, params=params
+            ctx,
+            start_state.value,
+            poses,
+            goal_state.value,
+            rng=rng,
+            until=until,
+            params=params,
+            limbs=opts.limbs,
         )
         lap("contacts")
         if best is None or _better(sequence, best[0]):

@@ -33,17 +33,21 @@ from planner.contact.generation import (
     break_contact,
     create_contact,
     hold_tasks,
+    nearest_foothold,
     posture_task,
 )
-from planner.contact.state import ContactState
+from planner.contact.state import ContactState, LimbContact
 from planner.kinematics import FramePlacementTask, Priority, frame_placement, solve_ik
 from planner.result import PlanResult, PlanStatus
 from planner.termination import Termination
 
 FloatArray = NDArray[np.float64]
 _STEP_FRACTIONS = (1.0, 0.6, 0.3)
-_ADVANCE_FRACTIONS = (1.0, 0.5, 0.25)
+# (fraction of the advance, m the body is raised above the guide): a body that cannot move
+# on at the guide's height may clear a rock with its legs when it walks taller
+_ADVANCE_TRIES = ((1.0, 0.0), (0.5, 0.0), (0.25, 0.0), (0.5, 0.05), (0.5, 0.1))
 _ROOT_FRAME = 1  # Pinocchio frame of the free-flyer root joint
+_PROGRESS_WEIGHTS = np.array([1.0, 1.0, 1.0 / 3.0])
 
 
 @dataclass(frozen=True, slots=True)
@@ -131,10 +135,39 @@ class _Guide:
 
     def progress(self, position: FloatArray, near: float) -> float:
         """Arc length (m) of the path sample nearest to ``position`` (3,), searched from
-        ``near - 0.3`` m on (the body never walks back along the guide)."""
+        ``near - 0.3`` m on (the body never walks back along the guide). Heights count a
+        third: a guide drawn straight up a staircase runs above the body on the treads."""
         start = int(np.searchsorted(self.lengths, near - 0.3))
-        gaps = np.linalg.norm(self.poses[start:, :3, 3] - position, axis=1)
-        return float(self.lengths[start + int(np.argmin(gaps))])
+        gaps = (self.poses[start:, :3, 3] - position) * _PROGRESS_WEIGHTS
+        return float(self.lengths[start + int(np.argmin(np.linalg.norm(gaps, axis=1)))])
+
+    def tangent(self, s: float) -> FloatArray:
+        """Unit direction (3,) of the guide at arc length ``s`` (over the next 0.1 m)."""
+        ahead = self.at(s + 0.1)[:3, 3] - self.at(s)[:3, 3]
+        if float(np.linalg.norm(ahead)) < 1e-9:
+            ahead = self.at(s)[:3, 3] - self.at(s - 0.1)[:3, 3]
+        norm = float(np.linalg.norm(ahead))
+        return ahead / norm if norm > 1e-9 else np.zeros(3)
+
+
+def _steps_on(
+    placed: FloatArray,
+    old: LimbContact | None,
+    target: FloatArray,
+    before: float,
+    tangent: FloatArray,
+    p: SequenceParams,
+) -> bool:
+    """Whether a contact put down at ``placed`` (3,) is a step: closer to its foothold
+    ``target`` (3,) than ``before`` (m) by half a minimal step, or (the foothold itself being
+    out of reach, as on a stair nosing) at least a minimal step further along the guide's
+    ``tangent`` (3,) without passing the foothold by more than the look-ahead."""
+    if float(np.linalg.norm(placed - target)) <= before - 0.5 * p.min_step:
+        return True
+    if old is None:
+        return False
+    forward = float(np.dot(placed - old.position, tangent))
+    return forward >= p.min_step and float(np.dot(placed - target, tangent)) <= p.lookahead
 
 
 def advance_body(
@@ -170,8 +203,12 @@ def contact_sequence(
     rng: np.random.Generator,
     until: Termination,
     params: SequenceParams | None = None,
+    limbs: Sequence[str] = (),
 ) -> PlanResult[tuple[ContactState, ...]]:
     """States from ``start`` along the guide ``poses`` (n, 4, 4) to ``goal``.
+
+    The walking limbs are those in contact at the start or the goal, plus ``limbs`` (say a
+    hand for a handrail); a walking limb the goal does not have is released at the end.
 
     SOLVED when the body has reached the end of the guide and every goal contact is made
     (within ``goal_tolerance``); APPROXIMATE with the states found so far when stuck; TIMEOUT
@@ -183,6 +220,7 @@ def contact_sequence(
     walking = list(start.limbs)
     if goal is not None:
         walking += [x for x in goal.limbs if x not in walking]
+    walking += [x for x in limbs if x not in walking]
     order = gait_order(offsets, walking)
     states: list[ContactState] = [start]
     current = start  # the body now: states[-1]'s contacts, its posture moved on by advances
@@ -210,7 +248,11 @@ def contact_sequence(
 
     def footholds(at: float) -> dict[str, FloatArray]:
         pose = guide.at(at)
-        out = {x: pose[:3, :3] @ offsets[x] + pose[:3, 3] for x in order}
+        out = {}
+        for limb in order:
+            nominal = pose[:3, :3] @ offsets[limb] + pose[:3, 3]
+            found = nearest_foothold(ctx, limb, nominal)
+            out[limb] = nominal if found is None else found
         if goal is not None and at >= guide.length - 1e-9:
             out.update({c.limb: c.position for c in goal.contacts})
         return out
@@ -238,8 +280,8 @@ def contact_sequence(
                 assert old is not None
                 if float(np.linalg.norm(placed.position - old.position)) < 0.02:
                     continue  # put back where it was: nothing gained
-            elif float(np.linalg.norm(placed.position - target)) > before - 0.5 * p.min_step:
-                continue  # not a step toward the foothold
+            elif not _steps_on(placed.position, old, target, before, guide.tangent(s), p):
+                continue
             if base is not current:
                 states.append(base)
                 stats["breaks"] = int(stats["breaks"]) + 1
@@ -259,9 +301,11 @@ def contact_sequence(
         # 1. advance the body along the guide
         moved = False
         if s < guide.length - 1e-9:
-            for fraction in _ADVANCE_FRACTIONS:
+            for fraction, rise in _ADVANCE_TRIES:
                 target_s = min(s + fraction * p.advance, guide.length)
-                advanced = advance_body(ctx, current, guide.at(target_s))
+                target = guide.at(target_s)
+                target[2, 3] += rise
+                advanced = advance_body(ctx, current, target)
                 if advanced is None:
                     continue
                 new_s = guide.progress(advanced.q[:3], s)

@@ -168,6 +168,15 @@ class Surface:
             out[outside] = starts[segment] + t[:, None] * (ends[segment] - starts[segment])
         return out
 
+    def nearest_boundary(self, coords: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Distances (p,) from (p, 2) plane coordinates to the boundary (outer loops and
+        holes), and the nearest boundary points (p, 2) in plane coordinates."""
+        c = np.asarray(coords, dtype=np.float64).reshape(-1, 2)
+        distance, segment, t = self._boundary_distance(c)
+        starts, ends = self._segments_3d()
+        a, b = self.to_plane(starts)[segment], self.to_plane(ends)[segment]
+        return distance, a + t[:, None] * (b - a)
+
     def _segments_3d(self) -> tuple[FloatArray, FloatArray]:
         starts = np.concatenate(self.polygons)
         ends = np.concatenate([np.roll(p, -1, axis=0) for p in self.polygons])

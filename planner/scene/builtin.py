@@ -26,6 +26,7 @@ STAIRS_LANDING = 1.2
 STAIRS_WIDTH = 1.0
 STAIRS_START_X = 1.0
 HANDRAIL_HEIGHT = 0.9
+HANDRAIL_WIDTH = 0.12
 
 TWISTER_ROWS = 6
 TWISTER_COLUMNS = 4
@@ -206,14 +207,15 @@ def stairs_profile() -> FloatArray:
 def stairs_mesh() -> trimesh.Trimesh:
     """Six 0.15 m rises (treads 0.30 m, the last a 1.2 m landing), 1 m wide, with a handrail.
 
-    The handrail runs on the +y side, 0.9 m above the tread nosings, on two posts.
+    The handrail runs on the +y side, 0.9 m above the tread nosings, on two posts; it is a
+    flat-topped banister 0.12 m wide, so that a hand fits on it.
     """
     half_width = STAIRS_WIDTH / 2.0
     parts = [
         _ground(center=(2.0, 0.0), size=(10.0, 8.0)),
         _prism(stairs_profile(), -half_width, half_width),
     ]
-    rail_y = half_width + 0.05
+    rail_y = half_width + HANDRAIL_WIDTH / 2.0
     x_bottom = STAIRS_START_X + 0.1
     x_top = STAIRS_START_X + (STAIRS_STEPS - 1) * STAIRS_TREAD + 0.1
     z_bottom = STAIRS_RISE + HANDRAIL_HEIGHT
@@ -228,7 +230,8 @@ def stairs_mesh() -> trimesh.Trimesh:
     length = float(np.hypot(x_top - x_bottom, z_top - z_bottom))
     pitch = float(np.arctan2(z_top - z_bottom, x_top - x_bottom))
     center = ((x_bottom + x_top) / 2.0, rail_y, (z_bottom + z_top) / 2.0)
-    parts.append(_oriented_box(center, (length + 0.05, 0.05, 0.05), _rotation((0, 1, 0), -pitch)))
+    extents = (length + 0.05, HANDRAIL_WIDTH, 0.05)
+    parts.append(_oriented_box(center, extents, _rotation((0, 1, 0), -pitch)))
     return _merge(parts)
 
 
