@@ -48,6 +48,8 @@ _STEP_FRACTIONS = (1.0, 0.6, 0.3)
 _ADVANCE_TRIES = ((1.0, 0.0), (0.5, 0.0), (0.25, 0.0), (0.5, 0.05), (0.5, 0.1))
 _ROOT_FRAME = 1  # Pinocchio frame of the free-flyer root joint
 _PROGRESS_WEIGHTS = np.array([1.0, 1.0, 1.0 / 3.0])
+_FOOTHOLD_RADIUS = 0.35  # m around a limb's nominal position searched for its foothold
+_OPTIONAL_RADIUS = 0.2  # the same for an optional limb (a hand reaching for a rail)
 
 
 @dataclass(frozen=True, slots=True)
@@ -220,7 +222,8 @@ def contact_sequence(
     walking = list(start.limbs)
     if goal is not None:
         walking += [x for x in goal.limbs if x not in walking]
-    walking += [x for x in limbs if x not in walking]
+    optional = [x for x in limbs if x not in walking]
+    walking += optional
     order = gait_order(offsets, walking)
     states: list[ContactState] = [start]
     current = start  # the body now: states[-1]'s contacts, its posture moved on by advances
@@ -246,16 +249,30 @@ def contact_sequence(
             stats["breaks"] = int(stats["breaks"]) + 1
         return result(PlanStatus.SOLVED)
 
-    def footholds(at: float) -> dict[str, FloatArray]:
+    def footholds(at: float) -> dict[str, FloatArray | None]:
+        # a limb's nominal position at the guide pose, moved to the nearest surface point
+        # where it fits; an optional limb (a hand) with no surface near has none
         pose = guide.at(at)
-        out = {}
+        out: dict[str, FloatArray | None] = {}
         for limb in order:
             nominal = pose[:3, :3] @ offsets[limb] + pose[:3, 3]
-            found = nearest_foothold(ctx, limb, nominal)
-            out[limb] = nominal if found is None else found
+            radius = _OPTIONAL_RADIUS if limb in optional else _FOOTHOLD_RADIUS
+            found = nearest_foothold(ctx, limb, nominal, within=radius)
+            out[limb] = found if found is not None or limb in optional else nominal
         if goal is not None and at >= guide.length - 1e-9:
             out.update({c.limb: c.position for c in goal.contacts})
         return out
+
+    def let_go(limb: str) -> bool:
+        # an optional limb whose support has run out (the end of a handrail) is released
+        nonlocal current
+        released = break_contact(ctx, current, limb)
+        if not released.ok:
+            return False
+        states.append(released.state)
+        current = released.state
+        stats["breaks"] = int(stats["breaks"]) + 1
+        return True
 
     def step(limb: str, target: FloatArray, reposition: bool = False) -> bool:
         nonlocal current
@@ -319,18 +336,26 @@ def contact_sequence(
         wanted = footholds(guide.length if at_end else s + p.lookahead)
         gaps = {}
         for limb in order:
-            c = current.contact(limb)
-            gaps[limb] = np.inf if c is None else float(np.linalg.norm(c.position - wanted[limb]))
+            c, aim = current.contact(limb), wanted[limb]
+            if aim is None:  # nothing to hold near here: no step; let go if holding
+                gaps[limb] = np.inf if c is not None else 0.0
+                continue
+            gaps[limb] = np.inf if c is None else float(np.linalg.norm(c.position - aim))
         tol = p.goal_tolerance if at_end else p.min_step
-        if at_end and all(
-            gaps[x] <= p.goal_tolerance for x in (goal.limbs if goal is not None else order)
-        ):
+        needed = goal.limbs if goal is not None else [x for x in order if x not in optional]
+        if at_end and all(gaps[x] <= p.goal_tolerance for x in needed):
             return finish()
         rotation = order[turn:] + order[:turn]
         candidates = [x for x in rotation if gaps[x] > tol]
         stepped = False
         for limb in candidates:
-            if step(limb, wanted[limb]):
+            aim = wanted[limb]
+            if aim is None:
+                if let_go(limb):
+                    stepped = True
+                    break
+                continue
+            if step(limb, aim):
                 turn = (order.index(limb) + 1) % len(order)
                 stepped = True
                 break
@@ -338,10 +363,12 @@ def contact_sequence(
             # reposition: a limb on its foothold may still block the body (a shin against a
             # rock after the body moved); put each down again somewhere near its foothold
             for limb in rotation:
+                aim = wanted[limb]
                 if (
                     limb not in candidates
-                    and gaps[limb] < np.inf
-                    and step(limb, wanted[limb], reposition=True)
+                    and aim is not None
+                    and current.contact(limb) is not None
+                    and step(limb, aim, reposition=True)
                 ):
                     turn = (order.index(limb) + 1) % len(order)
                     stepped = True

@@ -25,7 +25,7 @@ STAIRS_STEPS = 6  # the sixth is the top landing
 STAIRS_LANDING = 1.2
 STAIRS_WIDTH = 1.0
 STAIRS_START_X = 1.0
-HANDRAIL_HEIGHT = 0.9
+HANDRAIL_HEIGHT = 0.75
 HANDRAIL_WIDTH = 0.12
 
 TWISTER_ROWS = 6
@@ -207,7 +207,7 @@ def stairs_profile() -> FloatArray:
 def stairs_mesh() -> trimesh.Trimesh:
     """Six 0.15 m rises (treads 0.30 m, the last a 1.2 m landing), 1 m wide, with a handrail.
 
-    The handrail runs on the +y side, 0.9 m above the tread nosings, on two posts; it is a
+    The handrail runs on the +y side, 0.75 m above the tread nosings, on two posts; it is a
     flat-topped banister 0.12 m wide, so that a hand fits on it.
     """
     half_width = STAIRS_WIDTH / 2.0
