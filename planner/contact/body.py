@@ -3,6 +3,14 @@ limb's contact, and where a contact is recorded (placement and contact points).
 
 One rule for every producer of contacts (standing states, contact creation, states sent by
 clients), so that every check agrees on what touches the scene by design.
+
+A point contact is a sphere foot: a ball of radius ``|offset|`` centred on the effector frame
+origin (the spec's ``offset`` is its lowest point while the effector's contact normal points
+along the surface normal, as the built-in feet do in ``q_ref``). Its contact point is the
+ball's lowest point, ``origin - |offset| n`` for a surface of normal ``n``, however the frame
+is turned: a real robot's foot frame (HyQ's) is tilted in ``q_ref``, so ``origin + R offset``
+is not on the surface. :func:`contact_points` and :func:`sphere_centre` are the only places
+this rule is written; IK targets, recorded contacts and checks all go through them.
 """
 
 from __future__ import annotations
@@ -39,6 +47,29 @@ class BodyGeometry:
 _GEOMETRY: dict[int, tuple[Character, BodyGeometry]] = {}  # characters are few and memoised
 
 
+def _lowest_along(
+    geometry: Any, rotation: FloatArray, origin: FloatArray, direction: FloatArray
+) -> float:
+    """Smallest ``x . direction`` (m) over the points x of a coal ``geometry`` placed at
+    (``rotation`` (3, 3), ``origin`` (3,)): exact for spheres, capsules and boxes, from the
+    corners of the local bounding box otherwise (a tilted box overestimates the reach)."""
+    local = rotation.T @ direction
+    base = float(origin @ direction)
+    if isinstance(geometry, coal.Sphere):
+        return base - float(geometry.radius)
+    if isinstance(geometry, coal.Capsule):
+        end = float(geometry.halfLength) * abs(float(local[2]))
+        return base - end - float(geometry.radius)
+    if isinstance(geometry, coal.Box):
+        return base - float(np.abs(local) @ np.asarray(geometry.halfSide))
+    geometry.computeLocalAABB()
+    lo, hi = np.array(geometry.aabb_local.min_), np.array(geometry.aabb_local.max_)
+    box = np.array(
+        [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+    )
+    return base + float((box @ local).min())
+
+
 def body_geometry(character: Character) -> BodyGeometry:
     """The character's collision objects, which of them carry each limb's contact (those on
     the effector's link within ``EXEMPT_DISTANCE`` of its contact points, or of the ground for
@@ -57,11 +88,9 @@ def body_geometry(character: Character) -> BodyGeometry:
     depth: dict[tuple[str, int], float] = {}
     grounded = ground_limbs(character)
     for limb in character.limbs:
-        placement = data.oMf[limb.frame_id]
-        points = limb.contact_points() @ np.array(placement.rotation).T + placement.translation
+        placement = np.asarray(data.oMf[limb.frame_id].homogeneous, dtype=np.float64)
+        points, normal = reference_contact(limb, placement)
         joint = int(model.frames[limb.frame_id].parentJoint)
-        normal = np.array(placement.rotation) @ np.asarray(limb.normal, dtype=np.float64)
-        normal /= np.linalg.norm(normal)
         sole = float((points @ normal).min())
         near = set()
         for g, (parent, geometry, offset) in enumerate(objects):
@@ -69,14 +98,11 @@ def body_geometry(character: Character) -> BodyGeometry:
                 continue
             world = data.oMi[parent] * offset
             tf = coal.Transform3s(np.array(world.rotation), np.array(world.translation))
-            geometry.computeLocalAABB()
-            lo, hi = np.array(geometry.aabb_local.min_), np.array(geometry.aabb_local.max_)
-            box = np.array(
-                [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+            rotation, origin = np.array(world.rotation), np.array(world.translation)
+            lowest = _lowest_along(geometry, rotation, origin, np.array([0.0, 0.0, 1.0]))
+            depth[(limb.name, g)] = max(
+                0.0, sole - _lowest_along(geometry, rotation, origin, normal)
             )
-            corners = box @ np.array(world.rotation).T + world.translation
-            lowest = float(corners[:, 2].min())
-            depth[(limb.name, g)] = max(0.0, sole - float((corners @ normal).min()))
             if limb.name in grounded and lowest < EXEMPT_DISTANCE:
                 near.add(g)
             for point in points:
@@ -127,11 +153,38 @@ def contact_placement(character: Character, limb: str, q: FloatArray, data: Any)
     return out
 
 
+def point_radius(limb: Limb) -> float:
+    """Radius (m) of a point contact's sphere foot: the length of the limb's offset."""
+    return float(np.linalg.norm(limb.offset))
+
+
+def sphere_centre(limb: Limb, point: FloatArray, normal: FloatArray) -> FloatArray:
+    """(3,) world position of the effector frame origin (the sphere's centre) putting point
+    contact ``limb`` at ``point`` (3,) on a surface of unit ``normal`` (3,): the inverse of
+    :func:`contact_points` for a point contact."""
+    return np.asarray(point, dtype=np.float64) + point_radius(limb) * np.asarray(
+        normal, dtype=np.float64
+    )
+
+
 def contact_points(limb: Limb, placement: FloatArray, normal: FloatArray) -> FloatArray:
     """(k, 3) world contact points of ``limb`` with its effector at ``placement`` (4, 4) on a
     surface of unit ``normal`` (3,): the patch corners, or for a point contact the lowest
-    point of its sphere (frame origin minus the offset length along the normal)."""
+    point of its sphere (frame origin minus the radius along the normal; the placement's
+    rotation plays no part)."""
     if limb.contact == "point":
-        centre = placement[:3, 3] - float(np.linalg.norm(limb.offset)) * np.asarray(normal)
+        centre = placement[:3, 3] - point_radius(limb) * np.asarray(normal)
         return np.asarray(centre, dtype=np.float64)[None]
     return np.asarray(limb.contact_points() @ placement[:3, :3].T + placement[:3, 3])
+
+
+def reference_contact(limb: Limb, placement: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """(contact points (k, 3), unit normal (3,)) of ``limb`` with its effector at ``placement``
+    (4, 4) as the reference posture means it: a patch on the plane of its contact normal, a
+    point contact on level ground (normal +z)."""
+    if limb.contact == "point":
+        normal = np.array([0.0, 0.0, 1.0])
+    else:
+        normal = placement[:3, :3] @ np.asarray(limb.normal, dtype=np.float64)
+        normal = normal / np.linalg.norm(normal)
+    return contact_points(limb, placement, normal), normal

@@ -22,7 +22,13 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from planner.character import Character, Limb
-from planner.contact.body import body_geometry, contact_placement, contact_points, lifted_geometries
+from planner.contact.body import (
+    body_geometry,
+    contact_placement,
+    contact_points,
+    lifted_geometries,
+    sphere_centre,
+)
 from planner.contact.reachability import ReachabilityChecker, ground_limbs
 from planner.contact.state import ContactState, LimbContact
 from planner.kinematics import (
@@ -138,7 +144,9 @@ def _project(
     params: StandingParams,
     data: pin.Data,
 ) -> IkResult:
-    """IK of one limb onto ``target``: patches align their normal, points only their position."""
+    """IK of one limb onto ``target``: patches align their normal; a point contact puts its
+    sphere's centre (the effector frame origin) one radius above ``target`` along ``normal``,
+    so that its lowest point, the recorded contact point, is on the surface."""
     if limb.contact == "patch":
         return project_contact(
             model,
@@ -157,7 +165,9 @@ def _project(
     weights = np.zeros(model.nv)
     weights[dofs] = params.posture_weight
     tasks: list[Task] = [
-        FramePositionTask(limb.frame_id, target, limb.offset, Priority.CONTACT),
+        FramePositionTask(
+            limb.frame_id, sphere_centre(limb, target, normal), np.zeros(3), Priority.CONTACT
+        ),
         PostureTask(reference, weights, gain=0.3),
     ]
     return solve_ik(model, q, tasks, data=data, active=dofs)
