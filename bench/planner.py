@@ -25,7 +25,7 @@ from planner.character import get_character  # noqa: E402
 from planner.contact.planner import Endpoint, plan_contact_motion  # noqa: E402
 from planner.offline import load_offline_data  # noqa: E402
 from tests.paths import gecko_cache_dir  # noqa: E402
-from tests.scenarios.plans.test_plans import scenario_scene  # noqa: E402
+from tests.scenarios.plans.test_plans import scenario_options, scenario_scene  # noqa: E402
 
 SCENARIOS = ROOT / "tests" / "scenarios" / "plans"
 
@@ -75,6 +75,7 @@ def main() -> None:
                 _endpoint(spec["goal"]),
                 rng=np.random.default_rng(seed),
                 time_budget_s=float(spec["time_budget_s"]),
+                options=scenario_options(spec),
             )
             totals.append(time.perf_counter() - start)
             solved += result.status.value == "SOLVED"

@@ -49,7 +49,7 @@ _ADVANCE_TRIES = ((1.0, 0.0), (0.5, 0.0), (0.25, 0.0), (0.5, 0.05), (0.5, 0.1))
 _ROOT_FRAME = 1  # Pinocchio frame of the free-flyer root joint
 _PROGRESS_WEIGHTS = np.array([1.0, 1.0, 1.0 / 3.0])
 _FOOTHOLD_RADIUS = 0.35  # m around a limb's nominal position searched for its foothold
-_OPTIONAL_RADIUS = 0.2  # the same for an optional limb (a hand reaching for a rail)
+_OPTIONAL_RADIUS = 0.3  # the same for an optional limb (a hand reaching for a rail)
 
 
 @dataclass(frozen=True, slots=True)

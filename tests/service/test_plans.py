@@ -70,6 +70,8 @@ async def test_seed_is_drawn_and_echoed(client: httpx.AsyncClient) -> None:
         ({"start": {}}, "start"),
         ({"goal": {"position": [0, 0, 1], "orientation": [0, 0, 0, 0]}}, "goal"),
         ({"options": {"rate": 1000}}, "options.rate"),
+        ({"options": {"limbs": ["tail"]}}, "options.limbs"),
+        ({"options": {"limbs": ["left_hand"] * 17}}, "options.limbs"),
         ({"seed": -1}, "seed"),
         ({"unexpected": 1}, "unexpected"),
     ],

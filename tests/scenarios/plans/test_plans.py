@@ -21,7 +21,7 @@ import pytest
 from planner.character import get_character
 from planner.contact.checks import check_state, contact_on_surface, hold_error, within_limits
 from planner.contact.context import make_context
-from planner.contact.planner import ContactPlan, Endpoint, plan_contact_motion
+from planner.contact.planner import ContactPlan, Endpoint, PlanOptions, plan_contact_motion
 from planner.contact.sequence_motion import phase_kinematics
 from planner.contact.state import ContactState
 from planner.offline import load_offline_data
@@ -51,6 +51,12 @@ def scenario_scene(spec: dict[str, Any]) -> Scene | None:
     return load_scenario_scene(entry)
 
 
+def scenario_options(spec: dict[str, Any]) -> PlanOptions:
+    """The plan options of a scenario (``"options": {"limbs": [...]}``; defaults otherwise)."""
+    options = spec.get("options", {})
+    return PlanOptions(limbs=tuple(options.get("limbs", ())))
+
+
 def _plan(name: str) -> tuple[PlanResult[ContactPlan], Any, Any, Any]:
     spec = SPECS[name]
     scene = scenario_scene(spec)
@@ -66,6 +72,7 @@ def _plan(name: str) -> tuple[PlanResult[ContactPlan], Any, Any, Any]:
         _endpoint(spec["goal"]),
         rng=np.random.default_rng(int(spec["seed"])),
         time_budget_s=float(spec["time_budget_s"]),
+        options=scenario_options(spec),
     )
     return result, scene, character, data
 
@@ -102,6 +109,17 @@ def test_goal_contacts_reached(planned) -> None:  # type: ignore[no-untyped-def]
     if np.all(np.isfinite(goal)):
         centre = np.mean([c.position for c in last.contacts], axis=0)
         assert np.linalg.norm(centre[:2] - goal[:2]) <= 0.15
+
+
+def test_optional_limbs_used(planned) -> None:  # type: ignore[no-untyped-def]
+    """A limb a scenario offers (a hand for the handrail) is put to use, then let go."""
+    name, result, *_ = planned
+    plan = result.value
+    assert plan is not None
+    for limb in SPECS[name].get("options", {}).get("limbs", []):
+        holding = [s for s in plan.states if s.contact(limb) is not None]
+        assert len(holding) >= 3, f"{limb} held in {len(holding)} states"
+        assert plan.states[-1].contact(limb) is None
 
 
 def test_keyframes_hold_contacts_and_com_stays_in_kinematic_polytopes(planned) -> None:  # type: ignore[no-untyped-def]
