@@ -43,9 +43,17 @@ from planner.termination import Termination
 
 FloatArray = NDArray[np.float64]
 _STEP_FRACTIONS = (1.0, 0.6, 0.3)
-# (fraction of the advance, m the body is raised above the guide): a body that cannot move
-# on at the guide's height may clear a rock with its legs when it walks taller
-_ADVANCE_TRIES = ((1.0, 0.0), (0.5, 0.0), (0.25, 0.0), (0.5, 0.05), (0.5, 0.1))
+# (fraction of the advance, m the body is raised, raised over the body rather than the
+# guide): a body that cannot move on at the guide's height may clear a rock with its legs
+# when it walks taller
+_ADVANCE_TRIES = (
+    (1.0, 0.0, False),
+    (0.5, 0.0, False),
+    (0.25, 0.0, False),
+    (0.5, 0.05, False),
+    (0.5, 0.1, False),
+    (0.5, 0.05, True),
+)
 _ROOT_FRAME = 1  # Pinocchio frame of the free-flyer root joint
 _PROGRESS_WEIGHTS = np.array([1.0, 1.0, 1.0 / 3.0])
 _FOOTHOLD_RADIUS = 0.35  # m around a limb's nominal position searched for its foothold
@@ -318,9 +326,10 @@ def contact_sequence(
         # 1. advance the body along the guide
         moved = False
         if s < guide.length - 1e-9:
-            for fraction, rise in _ADVANCE_TRIES:
+            for fraction, rise, over_body in _ADVANCE_TRIES:
                 target_s = min(s + fraction * p.advance, guide.length)
                 target = guide.at(target_s)
+                target[2, 3] = max(target[2, 3], float(current.q[2])) if over_body else target[2, 3]
                 target[2, 3] += rise
                 advanced = advance_body(ctx, current, target)
                 if advanced is None:
