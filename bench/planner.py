@@ -92,6 +92,33 @@ def main() -> None:
         )
 
 
+def unreachable_goal(seeds: int) -> None:
+    """Answer time of a 1 s plan to a goal inside the closed pen (target: within 1.5 s)."""
+    from planner.scene import load_builtin_scene
+
+    character = get_character("humanoid")
+    data = load_offline_data(character, gecko_cache_dir())
+    pen = load_builtin_scene("pen")
+    times, statuses = [], set()
+    for seed in range(seeds):
+        start = time.perf_counter()
+        result = plan_contact_motion(
+            pen,
+            character,
+            data,
+            Endpoint(stand_at=np.array([0.0, 0.0, 0.0])),
+            Endpoint(stand_at=np.array([3.0, 0.0, 0.0])),
+            rng=np.random.default_rng(seed),
+            time_budget_s=1.0,
+        )
+        times.append(time.perf_counter() - start)
+        statuses.add(result.status.value)
+    print(
+        f"\n{'unreachable goal, 1 s budget':28s} med {statistics.median(times):.3f} s, "
+        f"max {max(times):.3f} s, status {'/'.join(sorted(statuses))}"
+    )
+
+
 def twister_games() -> None:
     """Median time per Twister step over the 20-move games of tests/scenarios/twister."""
     from tests.planner.contact.twister_game import SCENARIOS as GAMES
@@ -110,5 +137,6 @@ def twister_games() -> None:
 
 if __name__ == "__main__":
     main()
+    unreachable_goal(5)
     if "--no-twister" not in sys.argv:
         twister_games()

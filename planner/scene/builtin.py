@@ -347,6 +347,38 @@ def gaps_mesh() -> trimesh.Trimesh:
     return _merge(parts)
 
 
+PEN_CENTRE = (3.0, 0.0)
+PEN_HALF = 1.0
+PEN_HEIGHT = 2.5
+
+
+def pen_mesh() -> trimesh.Trimesh:
+    """Flat ground with a closed pen: four 2.5 m walls, 0.1 m thick, round a 2 x 2 m square
+    centred at (3, 0). Inside is good ground that nothing outside can reach (the walls have no
+    holds), the scene of unreachable goals."""
+    parts = [_ground()]
+    cx, cy = PEN_CENTRE
+    half, thick = PEN_HALF, 0.05
+    for sign in (-1.0, 1.0):
+        y = cy + sign * half
+        parts.append(
+            _box(
+                (cx - half - thick, y - thick, 0.0),
+                (cx + half + thick, y + thick, PEN_HEIGHT),
+                skip=("-z",),
+            )
+        )
+        x = cx + sign * half
+        parts.append(
+            _box(
+                (x - thick, cy - half + thick, 0.0),
+                (x + thick, cy + half - thick, PEN_HEIGHT),
+                skip=("-z",),
+            )
+        )
+    return _merge(parts)
+
+
 BUILTIN_MESHES: dict[str, tuple[str, Callable[[], trimesh.Trimesh]]] = {
     "flat": ("Flat ground", flat_mesh),
     "stairs": ("Stairs with a handrail", stairs_mesh),
@@ -355,4 +387,5 @@ BUILTIN_MESHES: dict[str, tuple[str, Callable[[], trimesh.Trimesh]]] = {
     "twister": ("Twister mat", twister_mesh),
     "rubble": ("Rubble and stepping stones", rubble_mesh),
     "gaps": ("Platforms with gaps", gaps_mesh),
+    "pen": ("Flat ground with a closed pen (unreachable inside)", pen_mesh),
 }

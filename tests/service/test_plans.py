@@ -93,11 +93,12 @@ async def test_unknown_ids_are_404(client: httpx.AsyncClient, key: str, value: s
 
 
 async def test_unreachable_goal_stops_within_budget(client: httpx.AsyncClient) -> None:
-    request = {**WALK, "goal": {"stand_at": [40.0, 40.0, 0.0]}, "time_budget_s": 1}
+    # the goal stands inside the closed pen: good ground that no path reaches
+    request = {**WALK, "scene": "pen", "goal": {"stand_at": [3.0, 0.0, 0.0]}, "time_budget_s": 1}
     await client.get("/health")
     started = time.monotonic()
     response = await client.post("/v1/plans", json=request, timeout=60)
     elapsed = time.monotonic() - started
     assert response.status_code == 200
-    assert response.json()["status"] in {"TIMEOUT", "INFEASIBLE", "INVALID_GOAL"}
+    assert response.json()["status"] in {"TIMEOUT", "INFEASIBLE"}
     assert elapsed < 1.5 + 5.0  # budget + margin, plus a worker's first start-up

@@ -1,0 +1,30 @@
+"""The whole contact pipeline honours its time budget on a goal nothing can reach."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from planner.contact.planner import Endpoint, plan_contact_motion
+from planner.result import PlanStatus
+from tests.planner.contact.contact_helpers import character_and_data, scene
+
+
+def test_unreachable_goal_answers_within_one_and_a_half_seconds() -> None:
+    character, data = character_and_data("humanoid")
+    pen = scene("pen")  # the goal stands inside four 2.5 m walls
+    clock = time.monotonic()
+    result = plan_contact_motion(
+        pen,
+        character,
+        data,
+        Endpoint(stand_at=np.array([0.0, 0.0, 0.0])),
+        Endpoint(stand_at=np.array([3.0, 0.0, 0.0])),
+        rng=np.random.default_rng(3),
+        time_budget_s=1.0,
+    )
+    elapsed = time.monotonic() - clock
+    assert result.status in (PlanStatus.TIMEOUT, PlanStatus.INFEASIBLE), result.message
+    assert result.value is not None and len(result.value.states) == 1  # the start, kept
+    assert elapsed < 1.5
