@@ -15,7 +15,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
-from planner.kinematics.ik import solve_ik
+from planner.kinematics.ik import IkProblem
 from planner.kinematics.model import (
     frame_id,
     frame_placements,
@@ -168,26 +168,29 @@ def track_com(
     swing_err = np.full(k, np.nan)
     success = np.zeros(k, dtype=bool)
     n_stance = len(stance)
+    # One problem for the whole track: only the COM and swing targets move between keyframes.
+    tasks: list[Task] = [*stance, ComTask(com_at(float(times[0])), com_axes)]
+    if swing is not None:
+        first = np.asarray(swing(float(times[0])), dtype=np.float64)
+        if first.shape == (4, 4):
+            tasks.append(FramePlacementTask(swing_id, first, Priority.EFFECTOR))
+        else:
+            tasks.append(
+                FramePositionTask(swing_id, first.reshape(3), np.zeros(3), Priority.EFFECTOR)
+            )
+    tasks.append(posture)
+    problem = IkProblem(
+        model, tasks, data=d, tolerance=tolerance, angular_tolerance=angular_tolerance
+    )
     for i, t in enumerate(times):
-        tasks: list[Task] = [*stance, ComTask(com_at(float(t)), com_axes)]
-        if swing is not None:
-            target = np.asarray(swing(float(t)), dtype=np.float64)
-            if target.shape == (4, 4):
-                tasks.append(FramePlacementTask(swing_id, target, Priority.EFFECTOR))
-            else:
-                tasks.append(
-                    FramePositionTask(swing_id, target.reshape(3), np.zeros(3), Priority.EFFECTOR)
+        if i:
+            problem.set_target(n_stance, com_at(float(t)))
+            if swing is not None:
+                target = np.asarray(swing(float(t)), dtype=np.float64)
+                problem.set_target(
+                    n_stance + 1, target if target.shape == (4, 4) else target.reshape(3)
                 )
-        tasks.append(posture)
-        result = solve_ik(
-            model,
-            q,
-            tasks,
-            data=d,
-            max_iterations=max_iterations,
-            tolerance=tolerance,
-            angular_tolerance=angular_tolerance,
-        )
+        result = problem.solve(q, max_iterations)
         q = np.array(result.q)
         configurations[i] = q
         res = result.residuals
