@@ -26,6 +26,7 @@ from planner.kinematics import (
     Priority,
     com_position,
     frame_placement,
+    keyframe_times,
     solve_ik,
     swing_trajectory,
     track_com,
@@ -279,10 +280,11 @@ def sequence_motion(
             # A point foot only places its position: its recorded orientation is the root's,
             # which a three-joint leg cannot give its foot frame, and chasing it twists the body.
             swing = _positions(arc) if limb.contact == "point" else arc
+        knots = keyframe_times(t0, t1, rate)  # the COM curve sampled once per phase
         track = track_com(
             model,
             q,
-            com_at,
+            (knots, np.asarray(curve(knots), dtype=np.float64)),
             stance=_stance_tasks(character, state.contacts),
             swing_frame=swing_frame,
             swing=swing,

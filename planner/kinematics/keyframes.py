@@ -190,7 +190,11 @@ def track_com(
                 problem.set_target(
                     n_stance + 1, target if target.shape == (4, 4) else target.reshape(3)
                 )
-        result = problem.solve(q, max_iterations)
+        guess = q
+        if i >= 2:  # constant-velocity prediction from the two previous keyframes
+            velocity = pin.difference(model, configurations[i - 2], configurations[i - 1])
+            guess = pin.integrate(model, q, velocity)
+        result = problem.solve(guess, max_iterations)
         q = np.array(result.q)
         configurations[i] = q
         res = result.residuals
@@ -272,15 +276,22 @@ def swing_trajectory(
         raise ValueError("need t_end > t_start")
     a = np.asarray(start, dtype=np.float64)
     b = np.asarray(end, dtype=np.float64)
-    swing_arc(a, b, np.zeros(1), lift=lift, normal_in_frame=normal_in_frame)  # validates
+    p0, p3, n0, n3, _ = _arc_inputs(a, b, np.zeros(1), normal_in_frame)
+    if not lift >= 0:
+        raise ValueError("lift must be non-negative")
+    reach = 4.0 * lift / 3.0
+    control = np.stack([p0, p0 + reach * n0, p3 + reach * n3, p3])  # as in swing_arc
     r0 = a[:3, :3]
     delta = np.asarray(pin.log3(r0.T @ b[:3, :3]), dtype=np.float64)
+    duration = t_end - t_start
 
     def pose(t: float) -> FloatArray:
-        s = float(minimum_jerk(np.array((t - t_start) / (t_end - t_start))))
+        tau = min(max((t - t_start) / duration, 0.0), 1.0)
+        s = tau**3 * (10.0 - 15.0 * tau + 6.0 * tau * tau)  # minimum_jerk, scalar
+        u = 1.0 - s
         out = np.eye(4)
         out[:3, :3] = r0 @ pin.exp3(s * delta)
-        out[:3, 3] = swing_arc(a, b, np.array([s]), lift=lift, normal_in_frame=normal_in_frame)[0]
+        out[:3, 3] = np.array([u**3, 3.0 * u * u * s, 3.0 * u * s * s, s**3]) @ control
         return out
 
     return pose
