@@ -512,6 +512,14 @@ def _linearise(
             j_local = pin.getFrameJacobian(model, d, c.fid, pin.LOCAL)
             _store(pin.Jlog6(err_pose.inverse()) @ j_local, e, w, out_j, out_e, act)
         return math.sqrt(float(dp @ dp)), math.sqrt(float(e[3:] @ e[3:]))
+    if c.kind == _POSITION and not c.has_offset:  # the common case, kept short
+        e_pos = c.target - placement.translation
+        lin = math.sqrt(float(e_pos @ e_pos))
+        if c.rows:
+            j = pin.getFrameJacobian(model, d, c.fid, pin.LOCAL_WORLD_ALIGNED)
+            np.multiply(j[:3] if act is None else j[:3, act], w, out=out_j)
+            np.multiply(e_pos, w, out=out_e)
+        return lin, 0.0
     rotation = placement.rotation
     lever = rotation @ c.offset
     e_pos = c.target - placement.translation - lever
