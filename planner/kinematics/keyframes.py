@@ -1,8 +1,9 @@
 """Whole-body keyframes along a COM trajectory (2PAC section 7.2), and swing-foot arcs.
 
-Each keyframe solves inverse kinematics warm-started from the previous one: stance contacts
-held (contact tier), the COM on its curve (COM tier), the swing effector on its path
-(effector tier) and a posture pull below all of them.
+Each keyframe solves inverse kinematics (one compiled problem per track, only its COM and
+swing targets moved), warm-started where the two previous keyframes lead at constant
+velocity: stance contacts held (contact tier), the COM on its curve (COM tier), the swing
+effector on its path (effector tier) and a posture pull below all of them.
 """
 
 from __future__ import annotations
@@ -137,7 +138,8 @@ def track_com(
     :func:`swing_trajectory`). ``reference`` (nq,) is the posture pulled toward (``q_start`` by
     default; root dofs get weight 0 unless ``posture_weights`` is an (nv,) array). Times run
     from ``t_start`` to ``t_end`` at ``rate`` Hz (defaults: the sample range). Each keyframe
-    is warm-started from the previous one; a failed keyframe is kept (best effort) and flagged.
+    is warm-started from the previous one, moved on at the velocity of the last two; a failed
+    keyframe is kept (best effort) and flagged.
 
     Raises ValueError on malformed input (including a missing time range for a callable).
     """
