@@ -1,9 +1,10 @@
 """Whole-body keyframes along a COM trajectory (2PAC section 7.2), and swing-foot arcs.
 
 Each keyframe solves inverse kinematics (one compiled problem per track, only its COM and
-swing targets moved), warm-started where the two previous keyframes lead at constant
-velocity: stance contacts held (contact tier), the COM on its curve (COM tier), the swing
-effector on its path (effector tier) and a posture pull below all of them.
+swing targets moved), warm-started from the previous keyframe or where the two previous
+ones lead at constant velocity: stance contacts held (contact tier), the COM on its curve
+(COM tier), the swing effector on its path (effector tier) and a posture pull below all of
+them.
 """
 
 from __future__ import annotations
@@ -129,6 +130,7 @@ def track_com(
     max_iterations: int = 50,
     tolerance: float = 1e-4,
     angular_tolerance: float = 1e-3,
+    predict: bool = False,
 ) -> KeyframeTrack:
     """Keyframes following ``com`` while holding ``stance`` and moving ``swing_frame``.
 
@@ -138,8 +140,9 @@ def track_com(
     :func:`swing_trajectory`). ``reference`` (nq,) is the posture pulled toward (``q_start`` by
     default; root dofs get weight 0 unless ``posture_weights`` is an (nv,) array). Times run
     from ``t_start`` to ``t_end`` at ``rate`` Hz (defaults: the sample range). Each keyframe
-    is warm-started from the previous one, moved on at the velocity of the last two; a failed
-    keyframe is kept (best effort) and flagged.
+    is warm-started from the previous one (with ``predict``, moved on at the velocity of the
+    last two: fewer iterations on a smooth path); a failed keyframe is kept (best effort) and
+    flagged.
 
     Raises ValueError on malformed input (including a missing time range for a callable).
     """
@@ -193,7 +196,7 @@ def track_com(
                     n_stance + 1, target if target.shape == (4, 4) else target.reshape(3)
                 )
         guess = q
-        if i >= 2:  # constant-velocity prediction from the two previous keyframes
+        if predict and i >= 2:  # constant-velocity prediction from the two previous keyframes
             velocity = pin.difference(model, configurations[i - 2], configurations[i - 1])
             guess = pin.integrate(model, q, velocity)
         result = problem.solve(guess, max_iterations)
