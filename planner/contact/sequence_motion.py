@@ -8,7 +8,7 @@ whole-body inverse kinematics tracks it while holding the stance contacts (2PAC 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -23,8 +23,10 @@ from planner.kinematics import (
     FramePlacementTask,
     FramePositionTask,
     PostureTask,
+    Priority,
     com_position,
     frame_placement,
+    keyframe_times,
     solve_ik,
     swing_trajectory,
     track_com,
@@ -98,13 +100,24 @@ def rest_to_rest(
 def _stance_tasks(
     character: Character, contacts: Sequence[LimbContact]
 ) -> list[FramePlacementTask | FramePositionTask]:
+    """Contact-tier tasks holding ``contacts``: the pose of a patch, the position of a point.
+
+    Both are explicitly in the contact tier: a FramePositionTask defaults to the effector
+    tier, ten times below the COM, and point feet then slid wherever the COM pulled them.
+    """
     tasks: list[FramePlacementTask | FramePositionTask] = []
     for contact in contacts:
         limb = character.limb(contact.limb)
         if limb.contact == "patch":
-            tasks.append(FramePlacementTask(frame=limb.effector_frame, target=contact.placement))
+            tasks.append(
+                FramePlacementTask(limb.effector_frame, contact.placement, Priority.CONTACT)
+            )
         else:
-            tasks.append(FramePositionTask(frame=limb.effector_frame, target=contact.position))
+            tasks.append(
+                FramePositionTask(
+                    limb.effector_frame, contact.position, np.zeros(3), Priority.CONTACT
+                )
+            )
     return tasks
 
 
@@ -125,6 +138,15 @@ def _last_placement(
         if contact is not None:
             return np.asarray(contact.placement)
     return frame_placement(character.model, q, character.limb(limb).effector_frame)
+
+
+def _positions(arc: Callable[[float], FloatArray]) -> Callable[[float], FloatArray]:
+    """The position (3,) part of a pose-valued path."""
+
+    def position(t: float) -> FloatArray:
+        return np.asarray(arc(t)[:3, 3], dtype=np.float64)
+
+    return position
 
 
 _HOLD_REPAIR = 0.005  # m, a keyframe whose stance slipped more than this is re-solved
@@ -252,13 +274,17 @@ def sequence_motion(
             assert target is not None
             start = _last_placement(character, states, k, swing_limb, q)
             swing_frame = limb.effector_frame
-            swing = swing_trajectory(
+            arc = swing_trajectory(
                 start, target.placement, t0, t1, lift=lift, normal_in_frame=limb.normal
             )
+            # A point foot only places its position: its recorded orientation is the root's,
+            # which a three-joint leg cannot give its foot frame, and chasing it twists the body.
+            swing = _positions(arc) if limb.contact == "point" else arc
+        knots = keyframe_times(t0, t1, rate)  # the COM curve sampled once per phase
         track = track_com(
             model,
             q,
-            com_at,
+            (knots, np.asarray(curve(knots), dtype=np.float64)),
             stance=_stance_tasks(character, state.contacts),
             swing_frame=swing_frame,
             swing=swing,
@@ -266,6 +292,7 @@ def sequence_motion(
             t_start=t0,
             t_end=t1,
             rate=rate,
+            predict=True,
         )
         first = 0 if k == 0 or not keyframes else 1
         stance = _stance_tasks(character, state.contacts)

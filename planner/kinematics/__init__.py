@@ -5,7 +5,7 @@ limb onto a surface), ``track_com`` (keyframes along a COM trajectory), swing ar
 kinematics helpers and conversions between Pinocchio configurations and named joint values.
 """
 
-from planner.kinematics.ik import IkResult, resolve_active, solve_ik
+from planner.kinematics.ik import IkProblem, IkResult, resolve_active, solve_ik
 from planner.kinematics.keyframes import (
     KeyframeTrack,
     hold_contacts,
@@ -51,6 +51,7 @@ __all__ = [
     "ContactNormalTask",
     "FramePlacementTask",
     "FramePositionTask",
+    "IkProblem",
     "IkResult",
     "KeyframeTrack",
     "PostureTask",

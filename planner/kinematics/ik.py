@@ -224,10 +224,14 @@ def _compile(
     )
 
 
-def _validate(model: pin.Model, q0: ArrayLike, tasks: Sequence[Task]) -> FloatArray:
+def _validate_q(model: pin.Model, q0: ArrayLike) -> FloatArray:
     q = np.array(q0, dtype=np.float64)
     if q.shape != (model.nq,) or not np.all(np.isfinite(q)):
         raise ValueError(f"q0 must be a finite ({model.nq},) configuration")
+    return q
+
+
+def _validate_tasks(model: pin.Model, tasks: Sequence[Task]) -> None:
     kinds = (FramePlacementTask, FramePositionTask, ContactNormalTask, ComTask, PostureTask)
     for t in tasks:
         if not isinstance(t, kinds):
@@ -241,7 +245,6 @@ def _validate(model: pin.Model, q0: ArrayLike, tasks: Sequence[Task]) -> FloatAr
         weights = np.asarray(p.weights)
         if weights.ndim == 1 and weights.shape != (model.nv,):
             raise ValueError(f"posture weights must be a scalar or ({model.nv},)")
-    return q
 
 
 def solve_ik(
@@ -269,30 +272,95 @@ def solve_ik(
     Raises ValueError on malformed input (shapes, unknown frames, several PostureTasks) and
     TypeError on an object that is not a task.
     """
-    q = _validate(model, q0, tasks)
-    if max_iterations < 0 or tolerance <= 0 or angular_tolerance <= 0 or max_step <= 0:
-        raise ValueError("need max_iterations >= 0 and positive tolerances and max_step")
-    act = resolve_active(model, active, lock_root)
-    mask = np.zeros(model.nv, dtype=bool)
-    mask[act] = True
-    compiled = [
-        _compile(model, i, t, mask) for i, t in enumerate(tasks) if not isinstance(t, PostureTask)
-    ]
-    posture_index = next((i for i, t in enumerate(tasks) if isinstance(t, PostureTask)), -1)
-    posture = tasks[posture_index] if posture_index >= 0 else None
-    assert posture is None or isinstance(posture, PostureTask)
-    solver = _Solver(
+    q = _validate_q(model, q0)
+    problem = IkProblem(
         model,
-        scratch_data(model) if data is None else data,
-        compiled,
-        posture,
-        posture_index,
-        len(tasks),
-        act,
-        tolerance,
-        angular_tolerance,
+        tasks,
+        data=data,
+        active=active,
+        lock_root=lock_root,
+        tolerance=tolerance,
+        angular_tolerance=angular_tolerance,
+        max_step=max_step,
     )
-    return solver.run(q, max_iterations, max_step)
+    return problem.solve(q, max_iterations)
+
+
+class IkProblem:
+    """A :func:`solve_ik` problem compiled once and solved many times, its targets movable in
+    between (keyframes along a trajectory): ``solve(q0)`` equals ``solve_ik`` on the tasks
+    with their current targets. Arguments as for :func:`solve_ik`. Not thread-safe.
+    """
+
+    def __init__(
+        self,
+        model: pin.Model,
+        tasks: Sequence[Task],
+        *,
+        data: pin.Data | None = None,
+        active: ArrayLike | None = None,
+        lock_root: bool = False,
+        tolerance: float = 1e-4,
+        angular_tolerance: float = 1e-3,
+        max_step: float = 0.5,
+    ) -> None:
+        _validate_tasks(model, tasks)
+        if tolerance <= 0 or angular_tolerance <= 0 or max_step <= 0:
+            raise ValueError("need positive tolerances and max_step")
+        act = resolve_active(model, active, lock_root)
+        mask = np.zeros(model.nv, dtype=bool)
+        mask[act] = True
+        compiled = [
+            _compile(model, i, t, mask)
+            for i, t in enumerate(tasks)
+            if not isinstance(t, PostureTask)
+        ]
+        self._by_index = {c.index: c for c in compiled}
+        posture_index = next((i for i, t in enumerate(tasks) if isinstance(t, PostureTask)), -1)
+        posture = tasks[posture_index] if posture_index >= 0 else None
+        assert posture is None or isinstance(posture, PostureTask)
+        self.model = model
+        self.max_step = max_step
+        self._solver = _Solver(
+            model,
+            scratch_data(model) if data is None else data,
+            compiled,
+            posture,
+            posture_index,
+            len(tasks),
+            act,
+            tolerance,
+            angular_tolerance,
+        )
+
+    def set_target(self, index: int, target: ArrayLike) -> None:
+        """Move the target of task ``index`` (its position in the task list): a pose (4, 4)
+        for a FramePlacementTask, a point (3,) otherwise (the COM, or where a frame point
+        goes; a ContactNormalTask keeps its normal). Raises ValueError on a malformed target
+        and on a PostureTask."""
+        c = self._by_index.get(index)
+        if c is None:
+            raise ValueError(f"task {index} has no target to move")
+        t = np.array(target, dtype=np.float64)
+        if not np.all(np.isfinite(t)):
+            raise ValueError("target must be finite")
+        if c.kind == _PLACEMENT:
+            rotation = t[:3, :3] if t.shape == (4, 4) else np.zeros((3, 3))
+            if t.shape != (4, 4) or np.abs(rotation.T @ rotation - np.eye(3)).max() > 1e-6:
+                raise ValueError("placement target must be a (4, 4) pose")
+            c.target_se3 = pin.SE3(rotation.copy(), t[:3, 3].copy())
+            c.target = t[:3, 3].copy()
+            return
+        if t.shape != (3,):
+            raise ValueError("target must be (3,)")
+        c.target = t
+
+    def solve(self, q0: ArrayLike, max_iterations: int = 100) -> IkResult:
+        """Move ``q0`` (nq,) until every task holds (see :func:`solve_ik`)."""
+        if max_iterations < 0:
+            raise ValueError("need max_iterations >= 0")
+        q = _validate_q(self.model, q0)
+        return self._solver.run(q, max_iterations, self.max_step)
 
 
 class _Solver:
@@ -375,6 +443,7 @@ class _Solver:
 
     def run(self, q_init: FloatArray, max_iterations: int, max_step: float) -> IkResult:
         model, act = self.model, self.act
+        self.residuals = None
         q = q_init.copy()
         q[self.qb_all] = np.clip(q[self.qb_all], self.lo_all, self.hi_all)
         q = np.asarray(pin.normalize(model, q), dtype=np.float64)
@@ -443,6 +512,14 @@ def _linearise(
             j_local = pin.getFrameJacobian(model, d, c.fid, pin.LOCAL)
             _store(pin.Jlog6(err_pose.inverse()) @ j_local, e, w, out_j, out_e, act)
         return math.sqrt(float(dp @ dp)), math.sqrt(float(e[3:] @ e[3:]))
+    if c.kind == _POSITION and not c.has_offset:  # the common case, kept short
+        e_pos = c.target - placement.translation
+        lin = math.sqrt(float(e_pos @ e_pos))
+        if c.rows:
+            j = pin.getFrameJacobian(model, d, c.fid, pin.LOCAL_WORLD_ALIGNED)
+            np.multiply(j[:3] if act is None else j[:3, act], w, out=out_j)
+            np.multiply(e_pos, w, out=out_e)
+        return lin, 0.0
     rotation = placement.rotation
     lever = rotation @ c.offset
     e_pos = c.target - placement.translation - lever

@@ -1,8 +1,10 @@
 """Whole-body keyframes along a COM trajectory (2PAC section 7.2), and swing-foot arcs.
 
-Each keyframe solves inverse kinematics warm-started from the previous one: stance contacts
-held (contact tier), the COM on its curve (COM tier), the swing effector on its path
-(effector tier) and a posture pull below all of them.
+Each keyframe solves inverse kinematics (one compiled problem per track, only its COM and
+swing targets moved), warm-started from the previous keyframe or where the two previous
+ones lead at constant velocity: stance contacts held (contact tier), the COM on its curve
+(COM tier), the swing effector on its path (effector tier) and a posture pull below all of
+them.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
-from planner.kinematics.ik import solve_ik
+from planner.kinematics.ik import IkProblem
 from planner.kinematics.model import (
     frame_id,
     frame_placements,
@@ -128,6 +130,7 @@ def track_com(
     max_iterations: int = 50,
     tolerance: float = 1e-4,
     angular_tolerance: float = 1e-3,
+    predict: bool = False,
 ) -> KeyframeTrack:
     """Keyframes following ``com`` while holding ``stance`` and moving ``swing_frame``.
 
@@ -137,7 +140,9 @@ def track_com(
     :func:`swing_trajectory`). ``reference`` (nq,) is the posture pulled toward (``q_start`` by
     default; root dofs get weight 0 unless ``posture_weights`` is an (nv,) array). Times run
     from ``t_start`` to ``t_end`` at ``rate`` Hz (defaults: the sample range). Each keyframe
-    is warm-started from the previous one; a failed keyframe is kept (best effort) and flagged.
+    is warm-started from the previous one (with ``predict``, moved on at the velocity of the
+    last two: fewer iterations on a smooth path); a failed keyframe is kept (best effort) and
+    flagged.
 
     Raises ValueError on malformed input (including a missing time range for a callable).
     """
@@ -168,26 +173,33 @@ def track_com(
     swing_err = np.full(k, np.nan)
     success = np.zeros(k, dtype=bool)
     n_stance = len(stance)
+    # One problem for the whole track: only the COM and swing targets move between keyframes.
+    tasks: list[Task] = [*stance, ComTask(com_at(float(times[0])), com_axes)]
+    if swing is not None:
+        first = np.asarray(swing(float(times[0])), dtype=np.float64)
+        if first.shape == (4, 4):
+            tasks.append(FramePlacementTask(swing_id, first, Priority.EFFECTOR))
+        else:
+            tasks.append(
+                FramePositionTask(swing_id, first.reshape(3), np.zeros(3), Priority.EFFECTOR)
+            )
+    tasks.append(posture)
+    problem = IkProblem(
+        model, tasks, data=d, tolerance=tolerance, angular_tolerance=angular_tolerance
+    )
     for i, t in enumerate(times):
-        tasks: list[Task] = [*stance, ComTask(com_at(float(t)), com_axes)]
-        if swing is not None:
-            target = np.asarray(swing(float(t)), dtype=np.float64)
-            if target.shape == (4, 4):
-                tasks.append(FramePlacementTask(swing_id, target, Priority.EFFECTOR))
-            else:
-                tasks.append(
-                    FramePositionTask(swing_id, target.reshape(3), np.zeros(3), Priority.EFFECTOR)
+        if i:
+            problem.set_target(n_stance, com_at(float(t)))
+            if swing is not None:
+                target = np.asarray(swing(float(t)), dtype=np.float64)
+                problem.set_target(
+                    n_stance + 1, target if target.shape == (4, 4) else target.reshape(3)
                 )
-        tasks.append(posture)
-        result = solve_ik(
-            model,
-            q,
-            tasks,
-            data=d,
-            max_iterations=max_iterations,
-            tolerance=tolerance,
-            angular_tolerance=angular_tolerance,
-        )
+        guess = q
+        if predict and i >= 2:  # constant-velocity prediction from the two previous keyframes
+            velocity = pin.difference(model, configurations[i - 2], configurations[i - 1])
+            guess = pin.integrate(model, q, velocity)
+        result = problem.solve(guess, max_iterations)
         q = np.array(result.q)
         configurations[i] = q
         res = result.residuals
@@ -269,15 +281,22 @@ def swing_trajectory(
         raise ValueError("need t_end > t_start")
     a = np.asarray(start, dtype=np.float64)
     b = np.asarray(end, dtype=np.float64)
-    swing_arc(a, b, np.zeros(1), lift=lift, normal_in_frame=normal_in_frame)  # validates
+    p0, p3, n0, n3, _ = _arc_inputs(a, b, np.zeros(1), normal_in_frame)
+    if not lift >= 0:
+        raise ValueError("lift must be non-negative")
+    reach = 4.0 * lift / 3.0
+    control = np.stack([p0, p0 + reach * n0, p3 + reach * n3, p3])  # as in swing_arc
     r0 = a[:3, :3]
     delta = np.asarray(pin.log3(r0.T @ b[:3, :3]), dtype=np.float64)
+    duration = t_end - t_start
 
     def pose(t: float) -> FloatArray:
-        s = float(minimum_jerk(np.array((t - t_start) / (t_end - t_start))))
+        tau = min(max((t - t_start) / duration, 0.0), 1.0)
+        s = tau**3 * (10.0 - 15.0 * tau + 6.0 * tau * tau)  # minimum_jerk, scalar
+        u = 1.0 - s
         out = np.eye(4)
         out[:3, :3] = r0 @ pin.exp3(s * delta)
-        out[:3, 3] = swing_arc(a, b, np.array([s]), lift=lift, normal_in_frame=normal_in_frame)[0]
+        out[:3, 3] = np.array([u**3, 3.0 * u * u * s, 3.0 * u * s * s, s**3]) @ control
         return out
 
     return pose

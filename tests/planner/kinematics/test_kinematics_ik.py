@@ -167,3 +167,33 @@ def test_rejects_malformed_input(biped: Robot) -> None:
         solve_ik(model, biped.q_stand, [np.eye(4)])
     with pytest.raises(ValueError, match="active"):
         solve_ik(model, biped.q_stand, [], active=np.ones(3, dtype=bool))
+
+
+def test_problem_with_moved_targets_solves_like_solve_ik(robot: Robot, perturb: Perturb) -> None:
+    from planner.kinematics import IkProblem
+
+    model, rng = robot.model, np.random.default_rng(3)
+    problem = IkProblem(model, _whole_body_tasks(robot, robot.q_stand))
+    com_index, hand_index = len(robot.feet), len(robot.feet) + 1
+    q = robot.q_stand
+    for _ in range(4):
+        q_target = perturb(model, rng, robot.q_stand, 0.2)
+        tasks = _whole_body_tasks(robot, q_target)
+        for i, task in enumerate(tasks[:-1]):
+            problem.set_target(i, task.target)
+        reused = problem.solve(q)
+        fresh = solve_ik(model, q, tasks)
+        assert np.array_equal(reused.q, fresh.q)
+        assert np.array_equal(reused.residuals, fresh.residuals)
+        assert reused.iterations == fresh.iterations
+        q = reused.q
+    with pytest.raises(ValueError):
+        problem.set_target(len(robot.feet) + 2, np.zeros(3))  # the posture
+    with pytest.raises(ValueError):
+        problem.set_target(com_index, np.zeros(4))
+    with pytest.raises(ValueError):
+        problem.set_target(0, np.zeros(3))  # a placement needs a pose
+    with pytest.raises(ValueError):
+        problem.set_target(hand_index, np.full(3, np.nan))
+    with pytest.raises(ValueError):
+        problem.solve(q, max_iterations=-1)

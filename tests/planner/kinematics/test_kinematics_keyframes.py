@@ -120,3 +120,26 @@ def test_unreachable_com_is_flagged_not_raised(biped: Robot) -> None:
     assert np.all(track.contact_errors < 5e-3)  # contacts still win over the COM
     with pytest.raises(ValueError, match="t_start and t_end"):
         track_com(model, q, lambda t: com0, stance=[])
+
+
+def test_predicted_warm_start_tracks_as_well(robot: Robot) -> None:
+    model = robot.model
+    start = com_position(model, robot.q_stand)
+    stance = hold_contacts(model, robot.q_stand, robot.feet)
+
+    def com(t: float) -> np.ndarray:
+        return start + np.array([0.04, 0.05, -0.04]) * np.sin(0.5 * np.pi * t)
+
+    plain = track_com(model, robot.q_stand, com, stance=stance, t_start=0.0, t_end=1.0)
+    predicted = track_com(
+        model, robot.q_stand, com, stance=stance, t_start=0.0, t_end=1.0, predict=True
+    )
+    assert plain.all_success and predicted.all_success
+    assert np.all(predicted.contact_errors <= 1e-4)
+    assert np.all(predicted.com_errors <= 1e-4)
+    assert all(within_limits(model, q) for q in predicted.configurations)
+    assert np.abs(predicted.configurations - plain.configurations).max() < 1e-2
+    again = track_com(
+        model, robot.q_stand, com, stance=stance, t_start=0.0, t_end=1.0, predict=True
+    )
+    assert np.array_equal(again.configurations, predicted.configurations)
