@@ -34,8 +34,17 @@ from planner.contact.checks import (
 )
 from planner.contact.context import ContactContext
 from planner.contact.generation import hold_tasks, posture_task
+from planner.contact.reachability import ground_limbs
 from planner.contact.state import ContactState
-from planner.kinematics import ComTask, keyframe_times, solve_ik, swing_trajectory, track_com
+from planner.kinematics import (
+    ComTask,
+    FramePlacementTask,
+    Priority,
+    keyframe_times,
+    solve_ik,
+    swing_trajectory,
+    track_com,
+)
 from planner.motion import ComSegment, Keyframe, Phase
 from trajectory import BezierCurve, PiecewiseBezier, quasi_static_polyline, validate_dynamics
 
@@ -123,6 +132,18 @@ def step_motion(
     swing_phase = 0 if creating else 1
     spec_geoms = limb_geometries(ctx, limb)
     stances = (before.contacts, after.contacts)
+    # legs neither in contact nor swinging stay where they hang (a foot lifted earlier does
+    # not sink into the floor while the body shifts over the others)
+    idle = [
+        FramePlacementTask(
+            other.frame_id, effector_pose(ctx, other.name, before.q), Priority.EFFECTOR
+        )
+        for other in ctx.character.limbs
+        if other.name != limb
+        and other.name in ground_limbs(ctx.character)
+        and before.contact(other.name) is None
+        and after.contact(other.name) is None
+    ]
     best: tuple[list[FloatArray], list[float], float, int, float] | None = None
     for lift in _LIFTS:
         qs: list[FloatArray] = []
@@ -148,7 +169,7 @@ def step_motion(
                 ctx.model,
                 q,
                 (knots, com_samples(knots)),
-                stance=hold_tasks(stances[j], ctx),
+                stance=[*hold_tasks(stances[j], ctx), *idle],
                 swing_frame=frame,
                 swing=swing,
                 reference=after.q,
