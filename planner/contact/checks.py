@@ -202,6 +202,29 @@ def scene_collisions(
     return hits
 
 
+def obstacle_normal(
+    ctx: ContactContext, q: FloatArray, contacts: Sequence[LimbContact] = ()
+) -> FloatArray | None:
+    """Unit direction (3,) pushing the body at ``q`` out of the scene and the obstacles: the
+    mean contact normal over the shapes :func:`scene_collisions` reports; None when none."""
+    geometry = ctx.character.geometry
+    pin.updateGeometryPlacements(ctx.model, ctx.pin_data, geometry, ctx.geom_data, q)
+    objects = geometry.geometryObjects
+    raised = lifted_geometries(ctx.character, [(c.limb, c.normal) for c in contacts])
+    total = np.zeros(3)
+    for i in range(len(objects)):
+        placement = np.array(ctx.geom_data.oMg[i].homogeneous)
+        if i in raised:
+            placement[:3, 3] += raised[i]
+        if not _collide(ctx, objects[i].geometry, placement):
+            continue
+        push = ctx.world.push_direction(objects[i].geometry, placement)
+        if push is not None:
+            total += push
+    norm = float(np.linalg.norm(total))
+    return None if norm < 1e-9 else np.asarray(total / norm, dtype=np.float64)
+
+
 def self_collides(ctx: ContactContext, q: FloatArray) -> bool:
     """Whether two non-adjacent body shapes intersect at ``q``."""
     return bool(

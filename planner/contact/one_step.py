@@ -173,10 +173,14 @@ def twister_step(
     report = dict(motion.report)
     report["attempts"] = attempts
     report["surface"] = attempt.surface
-    report["collisions_fixed"] = attempt.resampled + int(report.get("swing_lift", 0.0) > 0.1)
+    report["collisions_fixed"] = (
+        attempt.resampled
+        + int(report.get("swing_lift", 0.0) > 0.1)
+        + int(report.get("transition_shift", 0.0) > 0.0)
+    )
     return StepResult(
         True,
-        attempt.state,
+        motion.state,
         motion.phases,
         motion.com,
         motion.keyframes,

@@ -7,9 +7,10 @@ COM polytopes, Eq. 5-6); the swing happens with the COM at rest, so every phase 
 dynamic check of Eq. 1. Keyframes follow the COM by IK (2PAC section 7.2) holding the stance
 contacts and moving the swing effector along an arc; outside the swing IK runs every
 ``_STRIDE`` keyframes and the rest are interpolated on the configuration manifold (any whose
-stance slips more than 2 mm is re-solved). Local collision handling: a colliding keyframe
-sequence is recomputed with a higher swing arc (colliding contact postures are re-sampled
-earlier, in ``generation.create_contact``).
+stance slips more than 2 mm is re-solved). Local collision handling (2PAC 7.2): a colliding keyframe
+sequence is recomputed with a higher swing arc, then with the transition point moved along
+the obstacle normal (colliding contact postures are re-sampled earlier, in
+``generation.create_contact``).
 """
 
 from __future__ import annotations
@@ -27,13 +28,15 @@ from planner.contact.checks import (
     com_of,
     effector_pose,
     hold_error,
+    check_state,
     kinematics_of,
+    obstacle_normal,
     phase_of,
     scene_collisions,
     self_collides,
 )
 from planner.contact.context import ContactContext
-from planner.contact.generation import hold_tasks, posture_task
+from planner.contact.generation import balance_ik, hold_tasks, posture_task
 from planner.contact.reachability import ground_limbs
 from planner.contact.state import ContactState
 from planner.kinematics import (
@@ -59,6 +62,7 @@ _N_CHECKS = 5  # dynamic checks per phase
 _STRIDE = 5  # outside the swing, IK every _STRIDE keyframes, interpolated in between
 _FULL_CHECK_STRIDE = 5  # whole-body collision check every this many keyframes
 _REPAIR_TOL = 2e-3  # m, keyframes whose stance slips more are re-solved
+_TRANSITION_SHIFTS = (0.03, 0.06)  # m, moves of the transition point off an obstacle
 
 
 @dataclass(frozen=True, slots=True)
@@ -74,6 +78,7 @@ class StepMotion:
     com: tuple[ComSegment, ...]
     keyframes: tuple[Keyframe, ...]
     report: dict[str, Any]
+    state: ContactState
 
 
 def step_motion(
@@ -84,7 +89,72 @@ def step_motion(
     *,
     rate: float = 30.0,
 ) -> StepMotion:
-    """Phases, COM curve and keyframes taking ``before`` to ``after`` (``limb`` changes)."""
+    """Phases, COM curve and keyframes taking ``before`` to ``after`` (``limb`` changes).
+
+    When keyframes still collide after the higher swing arc, the transition point (the COM
+    of ``after``) is moved along the obstacle normal and the motion recomputed (2PAC 7.2);
+    the motion then ends in the re-posed state, ``StepMotion.state`` (same contacts). The
+    report gives ``transition_shift`` (m, 0 when not moved).
+    """
+    motion = _motion(ctx, before, after, limb, rate)
+    if motion.report["colliding_keyframes"] == 0:
+        return motion
+    normal = next(
+        (
+            n
+            for k in motion.keyframes[1:-1]
+            if (n := obstacle_normal(ctx, k.q, _stance_of(motion, k))) is not None
+        ),
+        None,
+    )
+    if normal is None:  # self-collision only: nothing to move away from
+        return motion
+    creating = after.contact(limb) is not None
+    fewer = before.contacts if creating else after.contacts
+    kin_b, kin_a = kinematics_of(ctx, before.contacts), kinematics_of(ctx, after.contacts)
+    c1 = com_of(ctx, after.q)
+    # lifted legs keep their pose while the body moves (not dragged into the floor)
+    lifted = [x for x in ground_limbs(ctx.character) if after.contact(x) is None]
+    keep = [
+        FramePlacementTask(
+            ctx.character.limb(x).frame_id, effector_pose(ctx, x, after.q), Priority.EFFECTOR
+        )
+        for x in lifted
+    ]
+    for shift in _TRANSITION_SHIFTS:
+        target = c1 + shift * normal
+        res = balance_ik(ctx, np.array(after.q), after.contacts, target, extra=keep, moving=lifted)
+        moved = ContactState(np.array(res.q), after.contacts)
+        com = com_of(ctx, moved.q)
+        if (
+            not check_state(ctx, moved).valid
+            or balance_margin(ctx, fewer, com) < ctx.params.margin
+            or max(kin_b.violation(com), kin_a.violation(com)) > 1e-3
+        ):
+            continue
+        again = _motion(ctx, before, moved, limb, rate)
+        again.report["transition_shift"] = shift
+        if again.report["colliding_keyframes"] < motion.report["colliding_keyframes"]:
+            motion = again
+        if motion.report["colliding_keyframes"] == 0:
+            break
+    return motion
+
+
+def _stance_of(motion: StepMotion, key: Keyframe) -> tuple[Any, ...]:
+    """The contacts held at keyframe ``key`` (those of its phase that it lists)."""
+    phase = motion.phases[0] if key.t < motion.phases[0].t1 else motion.phases[1]
+    return tuple(c for c in phase.contacts if c.limb in key.contacts)
+
+
+def _motion(
+    ctx: ContactContext,
+    before: ContactState,
+    after: ContactState,
+    limb: str,
+    rate: float,
+) -> StepMotion:
+    """:func:`step_motion` for a fixed transition point (the COM of ``after``)."""
     phase_b, phase_a = phase_of(ctx, before.contacts), phase_of(ctx, after.contacts)
     kin_b, kin_a = kinematics_of(ctx, before.contacts), kinematics_of(ctx, after.contacts)
     c0, c1 = com_of(ctx, before.q), com_of(ctx, after.q)
@@ -230,8 +300,9 @@ def step_motion(
         "max_hold_error": worst_hold,
         "colliding_keyframes": hits,
         "swing_lift": float(lift),
+        "transition_shift": 0.0,
     }
-    return StepMotion(phases, com, keyframes, report)
+    return StepMotion(phases, com, keyframes, report, after)
 
 
 def limb_geometries(ctx: ContactContext, limb: str) -> NDArray[np.int64]:

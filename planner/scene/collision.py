@@ -255,6 +255,23 @@ class CollisionWorld:
             )
         return float(best)
 
+    def push_direction(self, geometry: Any, matrix: FloatArray) -> FloatArray | None:
+        """Unit direction (3,) that takes a coal ``geometry`` at the world ``matrix`` (4, 4)
+        out of what it touches (the mean contact normal, pointing from the scene and the
+        obstacles into the geometry); None when it touches nothing."""
+        request = coal.CollisionRequest(coal.CollisionRequestFlag.CONTACT, 64)
+        transform = to_transform(matrix)
+        total = np.zeros(3)
+        for other, other_tf in ((self._bvh, self._identity), *self._obstacles):
+            result = coal.CollisionResult()
+            if coal.collide(other, other_tf, geometry, transform, request, result):
+                for contact in result.getContacts():
+                    total += np.asarray(contact.normal, dtype=np.float64)
+        norm = float(np.linalg.norm(total))
+        if norm < 1e-9:
+            return None
+        return np.asarray(total / norm, dtype=np.float64)
+
     def collides(self, shape: Shape, pose: FloatArray) -> bool:
         """Whether ``shape`` at the (4, 4) carrier pose touches the scene or an obstacle."""
         return self._collide(coal_geometry(shape), shape_world_matrix(shape, pose))

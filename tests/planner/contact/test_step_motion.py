@@ -5,10 +5,20 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
+import pinocchio as pin
 
-from planner.contact.checks import hold_error, within_limits
+from planner.contact.checks import (
+    check_state,
+    com_of,
+    hold_error,
+    obstacle_normal,
+    scene_collisions,
+    within_limits,
+)
 from planner.contact.generation import break_contact, create_contact
 from planner.contact.step_motion import step_motion
+from planner.poses import pose_matrix
+from planner.shapes import Box
 from tests.planner.contact.twister_game import context, start_state
 
 FEET = {"left_foot": (0.175, 0.175), "right_foot": (0.175, -0.175)}
@@ -47,3 +57,36 @@ def test_break_then_create_motion() -> None:
         assert all(r["fraction_valid"] >= 0.0 for r in motion.report["phases"])
         faster = step_motion(ctx, before, after, "right_foot", rate=60.0)
         assert len(faster.keyframes) > 1.7 * len(motion.keyframes)
+
+
+def test_transition_point_moves_off_an_obstacle() -> None:
+    """2PAC 7.2: a block just in front of the head where the COM shift takes it is avoided by
+    moving the transition point along the obstacle normal (back), the contacts unchanged."""
+    ctx = context("humanoid", "twister")
+    state = start_state(ctx, (0.175, 0.0), FEET)
+    released = break_contact(ctx, state, "right_foot").state
+    geometry = ctx.character.geometry
+    head = [o.name for o in geometry.geometryObjects].index("head_0")
+    pin.updateGeometryPlacements(ctx.model, ctx.pin_data, geometry, ctx.geom_data, released.q)
+    centre = np.array(ctx.geom_data.oMg[head].translation)
+    front = centre[0] + geometry.geometryObjects[head].geometry.radius - 0.01  # 1 cm into it
+    block = (
+        Box(np.array([0.05, 0.05, 0.05])),
+        pose_matrix(centre + np.array([front - centre[0] + 0.05, 0.0, 0.0])),
+    )
+    blocked = ctx.with_obstacles([block])
+    assert not scene_collisions(blocked, state.q, contacts=state.contacts)
+    assert scene_collisions(blocked, released.q, contacts=released.contacts) == ["head_0"]
+    normal = obstacle_normal(blocked, released.q, released.contacts)
+    assert normal is not None and normal[0] < -0.9
+
+    motion = step_motion(blocked, state, released, "right_foot")
+    assert motion.report["colliding_keyframes"] == 0
+    assert motion.report["transition_shift"] > 0.0
+    assert motion.state.contacts == released.contacts
+    assert check_state(blocked, motion.state).valid
+    assert com_of(ctx, motion.state.q)[0] < com_of(ctx, released.q)[0] - 0.02
+    np.testing.assert_array_equal(motion.keyframes[-1].q, motion.state.q)
+    for k in motion.keyframes:
+        phase = motion.phases[0] if k.t < motion.phases[0].t1 else motion.phases[1]
+        assert hold_error(ctx, k.q, phase.contacts) <= 0.01

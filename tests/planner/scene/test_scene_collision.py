@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import coal
 import numpy as np
 import pytest
 import trimesh
 
-from planner.poses import normalize_quaternion, poses_from, quaternion_to_matrix
+from planner.poses import normalize_quaternion, pose_matrix, poses_from, quaternion_to_matrix
 from planner.scene import CollisionWorld, Scene, build_scene
 from planner.scene.builtin import stairs_mesh
 from planner.scene.collision import bvh_cache_path
@@ -217,3 +218,14 @@ def test_queries_from_several_threads_agree(builtin_scenes) -> None:
     with ThreadPoolExecutor(4) as pool:
         results = list(pool.map(lambda chunk: scene.collision.collides_many(box, chunk), chunks))
     assert np.array_equal(np.concatenate(results), expected)
+
+
+def test_push_direction_points_out_of_what_is_touched(builtin_scenes) -> None:
+    box = coal.Box(0.2, 0.2, 0.2)
+    stairs = builtin_scenes["stairs"].collision
+    # sunk 1 cm into the ground: up; 5 cm into the first riser (x = 1): back
+    for centre, expected in (((0.0, 0.0, 0.09), (0, 0, 1)), ((0.95, 0.0, 0.05), (-1, 0, 0))):
+        push = stairs.push_direction(box, pose_matrix(np.array(centre)))
+        assert push is not None
+        np.testing.assert_allclose(push, expected, atol=1e-6)
+    assert stairs.push_direction(box, pose_matrix(np.array([0.0, 0.0, 0.5]))) is None

@@ -34,6 +34,7 @@ def test_builtin_ids() -> None:
         "twister",
         "rubble",
         "gaps",
+        "pen",
     )
     with pytest.raises(SceneError, match="unknown built-in scene"):
         load_builtin_scene("moon")
