@@ -25,10 +25,10 @@ from numpy.typing import NDArray
 
 from planner.contact.checks import (
     balance_margin,
+    check_state,
     com_of,
     effector_pose,
     hold_error,
-    check_state,
     kinematics_of,
     obstacle_normal,
     phase_of,
