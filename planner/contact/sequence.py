@@ -166,18 +166,20 @@ def _steps_on(
     target: FloatArray,
     before: float,
     tangent: FloatArray,
+    reach: float,
     p: SequenceParams,
 ) -> bool:
     """Whether a contact put down at ``placed`` (3,) is a step: closer to its foothold
     ``target`` (3,) than ``before`` (m) by half a minimal step, or (the foothold itself being
     out of reach, as on a stair nosing) at least a minimal step further along the guide's
-    ``tangent`` (3,) without passing the foothold by more than the look-ahead."""
+    ``tangent`` (3,) without passing the foothold by more than ``reach`` (m, the look-ahead
+    in use)."""
     if float(np.linalg.norm(placed - target)) <= before - 0.5 * p.min_step:
         return True
     if old is None:
         return False
     forward = float(np.dot(placed - old.position, tangent))
-    return forward >= p.min_step and float(np.dot(placed - target, tangent)) <= p.lookahead
+    return forward >= p.min_step and float(np.dot(placed - target, tangent)) <= reach
 
 
 def advance_body(
@@ -305,7 +307,7 @@ def contact_sequence(
                 assert old is not None
                 if float(np.linalg.norm(placed.position - old.position)) < 0.02:
                     continue  # put back where it was: nothing gained
-            elif not _steps_on(placed.position, old, target, before, guide.tangent(s), p):
+            elif not _steps_on(placed.position, old, target, before, guide.tangent(s), reach, p):
                 continue
             if base is not current:
                 states.append(base)
@@ -317,6 +319,7 @@ def contact_sequence(
         return False
 
     stuck = 0
+    reach = p.lookahead  # m ahead where footholds are taken; grows while stuck
     while True:
         if until():
             return result(PlanStatus.TIMEOUT, "time budget spent while walking the path")
@@ -342,7 +345,9 @@ def contact_sequence(
                 break
         # 2. step the limb furthest from its foothold
         at_end = s >= guide.length - p.spacing
-        wanted = footholds(guide.length if at_end else s + p.lookahead)
+        # a stuck walker looks further ahead for footholds (a gap between stepping stones)
+        reach = p.lookahead * (1 + stuck)
+        wanted = footholds(guide.length if at_end else s + reach)
         gaps = {}
         for limb in order:
             c, aim = current.contact(limb), wanted[limb]
