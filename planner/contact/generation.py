@@ -216,11 +216,12 @@ def _point_on(surface: Surface, desired: FloatArray, radius: float) -> FloatArra
     p = surface.to_plane(closest[None])[0]
     for _ in range(6):
         world = surface.from_plane(p[None])
-        if surface.contains_projection(world, margin=radius)[0]:
-            return _on_mesh(surface, world[0])
+        inside = bool(surface.contains_projection(world)[0])
         distance, nearest = surface.nearest_boundary(p[None])
+        if inside and distance[0] >= radius:
+            return _on_mesh(surface, world[0])
         away = p - nearest[0]
-        if distance[0] < 1e-6 or not surface.contains_projection(world)[0]:
+        if distance[0] < 1e-6 or not inside:
             away = -p  # on or outside the boundary: head for the centroid (plane origin)
         norm = float(np.linalg.norm(away))
         if norm < 1e-9:
@@ -296,9 +297,10 @@ _HEADROOM = 0.1  # m of free space wanted above a contact point
 
 
 def _uncovered(ctx: ContactContext, sid: int, point: FloatArray, radius: float) -> bool:
-    """Whether the space just above ``point`` (3,) on surface ``sid`` is free: a capsule of
-    half the patch ``radius`` standing ``_HEADROOM`` m along the normal, starting just off the
-    surface, touches nothing (ground running under a slab or a stair is not a foothold)."""
+    """Whether the space just above ``point`` (3,) on surface ``sid`` is free: not inside a
+    solid of the scene (ground running on under a staircase), and a capsule of half the
+    patch ``radius`` standing ``_HEADROOM`` m along the normal, starting just off the
+    surface, touches nothing (ground under the edge of a slab, or an obstacle)."""
     key = ("uncovered", sid, radius, tuple(np.round(point, 2).tolist()))
 
     def test() -> bool:
@@ -307,6 +309,8 @@ def _uncovered(ctx: ContactContext, sid: int, point: FloatArray, radius: float) 
         pose = np.eye(4)
         pose[:3, :3] = plane_basis(normal).T
         pose[:3, 3] = point + normal * (0.005 + r + 0.5 * _HEADROOM)
+        if ctx.scene.inside_solid(point + 0.005 * normal):
+            return False
         return not ctx.world.collides(Capsule(r, 0.5 * _HEADROOM), pose)
 
     free: bool = ctx.cached(key, test)

@@ -5,15 +5,20 @@ The root path is a guide, not a constraint. The walker repeats a gait cycle:
 1. **advance**: whole-body IK moves the body toward the guide pose ``advance`` metres ahead
    while every contact is held (root free, the guide pose a soft target); the move is kept
    when the state stays valid (balanced with the margin, inside the kinematic polytopes,
-   collision-free), else a shorter move is tried;
-2. **step**: each walking limb has a desired foothold, its reference effector position at the
-   guide pose ``lookahead`` metres ahead of the body (the goal contacts near the end). The
-   next limb in a fixed gait order (each side back to front, left then right: a crawl for
-   quadrupeds, a wave for hexapods) that is off its foothold is released
-   (COM shifted over the other contacts, 2PAC) and put down again at its foothold or part of
-   the way there (candidates from the limb database, projected by IK, checked for collision,
-   balance with the margin and 2PAC feasibility). The release is only emitted with the new
-   contact, so a failed step leaves the sequence unchanged and another limb is tried.
+   collision-free), else a shorter move is tried, then a taller one (legs clearing a rock);
+2. **step**: each walking limb has a desired foothold: its reference effector position at
+   the guide pose ``lookahead`` metres ahead of the body, moved to the nearest surface point
+   where its contact fits with free space above (the goal contacts near the end). The next
+   limb in a fixed gait order (each side back to front, left then right: a crawl for
+   quadrupeds, a wave for hexapods) that is off its foothold is released (COM shifted over
+   the other contacts, 2PAC) and put down again at its foothold or part of the way there
+   (candidates from the limb database, projected by IK, checked for collision, balance with
+   the margin and 2PAC feasibility). The release is only emitted with the new contact, so a
+   failed step leaves the sequence unchanged and another limb is tried. A stuck walker
+   looks further ahead for footholds (stepping stones), then repositions a limb.
+
+Optional limbs (``limbs``, say a hand for a handrail) take a foothold only near their
+nominal position and are let go when none is left.
 
 Every emitted state differs from the previous one by exactly one contact added or removed.
 """

@@ -65,6 +65,48 @@ class Scene:
         """The surfaces of one kind, in id order."""
         return tuple(s for s in self.surfaces if s.kind is kind)
 
+    def inside_solid(self, point: FloatArray) -> bool:
+        """Whether ``point`` (3,) is inside a solid of the mesh: the vertical ray up from it
+        crosses the mesh an odd number of times (distinct heights, so a ray through an edge
+        shared by two triangles counts once). Ground running on under a staircase, or under
+        a block whose bottom face was left out, is inside; ground under a table is not."""
+        px, py, pz = (float(c) for c in np.asarray(point, dtype=np.float64).reshape(3))
+        lo, hi, tri = _vertical_ray_data(self)
+        near = (lo[:, 0] <= px) & (px <= hi[:, 0]) & (lo[:, 1] <= py) & (py <= hi[:, 1])
+        near &= hi[:, 2] > pz
+        if not np.any(near):
+            return False
+        t = tri[near]  # (k, 3, 3)
+        a, b, c = t[:, 0], t[:, 1], t[:, 2]
+        v0, v1 = b[:, :2] - a[:, :2], c[:, :2] - a[:, :2]
+        v2 = np.array([px, py]) - a[:, :2]
+        den = v0[:, 0] * v1[:, 1] - v1[:, 0] * v0[:, 1]
+        flat = np.abs(den) > 1e-12  # a vertical triangle is grazed, not crossed
+        den = np.where(flat, den, 1.0)
+        wb = (v2[:, 0] * v1[:, 1] - v1[:, 0] * v2[:, 1]) / den
+        wc = (v0[:, 0] * v2[:, 1] - v2[:, 0] * v0[:, 1]) / den
+        wa = 1.0 - wb - wc
+        hit = flat & (wa >= -1e-12) & (wb >= -1e-12) & (wc >= -1e-12)
+        heights = wa * a[:, 2] + wb * b[:, 2] + wc * c[:, 2]
+        above = np.unique(np.round(heights[hit & (heights > pz + 1e-9)], 6))
+        return len(above) % 2 == 1
+
+
+_RAY_DATA: dict[int, tuple[Scene, FloatArray, FloatArray, FloatArray]] = {}
+
+
+def _vertical_ray_data(scene: Scene) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Per face of ``scene``: bounding-box corners (m, 3) low and high, and the triangles
+    (m, 3, 3); memoised per scene."""
+    hit = _RAY_DATA.get(id(scene))
+    if hit is None or hit[0] is not scene:
+        tri = np.asarray(scene.vertices[scene.faces], dtype=np.float64)
+        hit = (scene, tri.min(axis=1), tri.max(axis=1), tri)
+        if len(_RAY_DATA) > 64:
+            _RAY_DATA.clear()
+        _RAY_DATA[id(scene)] = hit
+    return hit[1], hit[2], hit[3]
+
 
 def build_scene(
     mesh: trimesh.Trimesh,

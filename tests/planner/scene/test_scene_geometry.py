@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import linprog
 from scipy.spatial import ConvexHull, HalfspaceIntersection
@@ -185,3 +185,36 @@ def test_contact_region_of_a_rotated_polytope_on_the_ground(builtin_scenes) -> N
     assert np.allclose(region.centroid, [1.0, 2.0, 0.0])
     with pytest.raises(TypeError):
         contact_region(object(), np.eye(4), ground)  # type: ignore[arg-type]
+
+
+def _translation(x: float, y: float, z: float) -> np.ndarray:
+    return pose_matrix(np.array([x, y, z]))
+
+
+_BOX_SCENE = build_scene(
+    trimesh.util.concatenate(
+        [
+            trimesh.creation.box(extents=(4.0, 4.0, 0.02), transform=_translation(0, 0, -0.01)),
+            trimesh.creation.box(extents=(1.0, 0.6, 0.4), transform=_translation(0.3, -0.2, 0.2)),
+        ]
+    )
+)
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    x=st.floats(-1.0, 1.5),
+    y=st.floats(-1.0, 1.0),
+    z=st.floats(0.001, 0.8),
+)
+def test_inside_solid_matches_the_box(x: float, y: float, z: float) -> None:
+    """Inside the block (x 0.3 +- 0.5, y -0.2 +- 0.3, z 0 to 0.4) is inside a solid; the
+    ground slab's top and everything beside or above the block is not."""
+    margin = 1e-3
+    inside = abs(x - 0.3) < 0.5 - margin and abs(y + 0.2) < 0.3 - margin and z < 0.4 - margin
+    outside = abs(x - 0.3) > 0.5 + margin or abs(y + 0.2) > 0.3 + margin or z > 0.4 + margin
+    got = _BOX_SCENE.inside_solid(np.array([x, y, z]))
+    if inside:
+        assert got
+    elif outside:
+        assert not got

@@ -1,0 +1,61 @@
+"""Footholds: where a contact patch fits on a surface, with free space above it."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from planner.contact.generation import _patch_radius, _point_on, nearest_foothold
+from planner.scene.builtin import STAIRS_RISE, STAIRS_START_X, STAIRS_TREAD
+from tests.planner.contact.twister_game import context, scene
+
+STAIRS = scene("stairs")
+SURFACES = [s for s in STAIRS.surfaces if s.area > 0.05]
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    index=st.integers(0, len(SURFACES) - 1),
+    offset=st.tuples(*[st.floats(-1.0, 1.0)] * 3),
+    radius=st.floats(0.02, 0.13),
+)
+def test_point_on_leaves_room_for_the_disc(
+    index: int, offset: tuple[float, float, float], radius: float
+) -> None:
+    surface = SURFACES[index]
+    desired = surface.centroid + np.asarray(offset)
+    point = _point_on(surface, desired, radius)
+    if point is None:
+        return
+    assert abs(float(surface.height(point[None])[0])) < 1e-6  # on the surface plane
+    assert surface.contains_projection(point[None], margin=radius - 1e-6)[0]
+    # a point where the disc already fits is kept as it is
+    again = _point_on(surface, point, radius)
+    assert again is not None
+    np.testing.assert_allclose(again, point, atol=1e-9)
+
+
+def test_a_foot_keeps_its_place_along_a_tread() -> None:
+    ctx = context("humanoid", "stairs", twister=False)
+    radius = _patch_radius(ctx, "left_foot")
+    tread = next(
+        s
+        for s in STAIRS.surfaces
+        if abs(s.centroid[2] - STAIRS_RISE) < 1e-6 and abs(s.normal[2] - 1.0) < 1e-9
+    )
+    # 7 cm past the riser, 0.29 m to the side: pushed off the riser edge only
+    point = _point_on(tread, np.array([STAIRS_START_X + 0.07, 0.29, STAIRS_RISE]), radius)
+    assert point is not None
+    assert abs(point[1] - 0.29) < 1e-9
+    assert STAIRS_START_X + radius <= point[0] <= STAIRS_START_X + STAIRS_TREAD - radius
+
+
+def test_no_foothold_under_the_stairs() -> None:
+    """The ground runs on under the staircase; a foothold there would be inside it."""
+    ctx = context("humanoid", "stairs", twister=False)
+    inside = np.array([STAIRS_START_X + 0.5, 0.0, 0.0])
+    found = nearest_foothold(ctx, "left_foot", inside, within=0.5)
+    assert found is not None
+    assert found[2] > STAIRS_RISE - 1e-6  # on a tread, not on the covered ground
+    assert nearest_foothold(ctx, "left_foot", np.array([0.0, 0.0, 3.0]), within=0.5) is None
