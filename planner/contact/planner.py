@@ -105,6 +105,7 @@ def _resolve(
 
 
 _RETRY_JITTERS = (0.05, 0.15, 0.3, 0.3)
+SEARCH_SHARE = 0.8  # of the time budget for endpoints, root path and contacts
 
 
 def _better(
@@ -146,14 +147,17 @@ def plan_contact_motion(
     The status is the worst of the stages: INVALID_START / INVALID_GOAL when an endpoint has
     no valid standing state, the root path's status when it fails (TIMEOUT, INFEASIBLE), the
     contact sequence's otherwise (SOLVED, or APPROXIMATE with the partial plan). Keyframes
-    are computed for whatever states were found, within the remaining budget.
+    are computed for whatever states were found, within the remaining budget: the search
+    (endpoints, root path, contacts) stops at ``SEARCH_SHARE`` of it, so a plan that used
+    its search time still animates and the whole answer comes within ``time_budget_s``.
     """
     opts = options or PlanOptions()
     names = [limb.name for limb in character.limbs]
     unknown = [x for x in opts.limbs if x not in names]
     if unknown:
         raise ValueError(f"options.limbs: unknown limbs {unknown}; expected some of {names}")
-    until = Deadline(time_budget_s)
+    whole = Deadline(time_budget_s)
+    until = Deadline(SEARCH_SHARE * time_budget_s)  # the search; keyframes get the rest
     timings: dict[str, float] = {}
     clock = time.perf_counter()
 
@@ -220,9 +224,7 @@ def plan_contact_motion(
     assert best is not None
     sequence, poses, path = best
     states = sequence.value or (start_state.value,)
-    # Keyframes get their own budget share so a plan that used its time still animates.
-    motion_deadline = Deadline(max(until.remaining(), 0.25 * time_budget_s))
-    motion = sequence_motion(character, data, states, rate=opts.rate, until=motion_deadline)
+    motion = sequence_motion(character, data, states, rate=opts.rate, until=whole)
     lap("motion")
     status = sequence.status
     if status is PlanStatus.TIMEOUT and len(states) > 1:
