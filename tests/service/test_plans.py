@@ -48,6 +48,28 @@ async def test_plan_walk_answers_with_phases_and_keyframes(client: httpx.AsyncCl
     assert np.linalg.norm(quat) == pytest.approx(1.0)
 
 
+async def test_plan_holds_the_handrail_when_offered_a_hand(client: httpx.AsyncClient) -> None:
+    request = {
+        "character": "humanoid",
+        "scene": "stairs",
+        "start": {"stand_at": [0.4, 0.1, 0.0]},
+        "goal": {"stand_at": [3.1, 0.1, 0.9]},
+        "options": {"limbs": ["left_hand"]},
+        "seed": 1,
+        "time_budget_s": 30,
+    }
+    response = await client.post("/v1/plans", json=request, timeout=120)
+    assert response.status_code == 200, response.text
+    body = response.json()
+    assert body["status"] == "SOLVED", body["message"]
+    held = [p for p in body["phases"] if any(c["limb"] == "left_hand" for c in p["contacts"])]
+    assert held, "the hand never took the rail"
+    for phase in held:  # on the banister: its top is 0.75 m above the nosings, at least
+        hand = next(c for c in phase["contacts"] if c["limb"] == "left_hand")
+        assert min(point[2] for point in hand["points"]) > 0.75
+    assert all(c["limb"] != "left_hand" for c in body["states"][-1]["contacts"])
+
+
 async def test_same_seed_same_answer(client: httpx.AsyncClient) -> None:
     first = (await client.post("/v1/plans", json=WALK, timeout=120)).json()
     second = (await client.post("/v1/plans", json=WALK, timeout=120)).json()
