@@ -317,18 +317,33 @@ def _uncovered(ctx: ContactContext, sid: int, point: FloatArray, radius: float) 
     return free
 
 
+def _surface_spheres(ctx: ContactContext) -> tuple[NDArray[np.int64], FloatArray, FloatArray]:
+    """The allowed surface ids (k,), their centroids (k, 3) and bounding radii (k,)."""
+
+    def make() -> tuple[NDArray[np.int64], FloatArray, FloatArray]:
+        ids = np.asarray(ctx.surfaces, dtype=np.int64)
+        centres = np.array([ctx.scene.surfaces[i].centroid for i in ids]).reshape(-1, 3)
+        bounds = np.array([_bound(ctx.scene.surfaces[i]) for i in ids], dtype=np.float64)
+        return ids, centres, bounds
+
+    out: tuple[NDArray[np.int64], FloatArray, FloatArray] = ctx.cached("surface_spheres", make)
+    return out
+
+
 def nearest_foothold(
     ctx: ContactContext, limb: str, point: FloatArray, within: float = 0.5
 ) -> FloatArray | None:
     """The point (3,) of an allowed surface nearest to ``point`` (3,) where ``limb``'s contact
     patch fits, searched within ``within`` m; None when there is none."""
     radius = _patch_radius(ctx, limb)
+    ids, centres, bounds = _surface_spheres(ctx)
+    lower = np.linalg.norm(centres - point, axis=1) - bounds  # no closer than this
     best: FloatArray | None = None
     best_gap = within
-    for sid in ctx.surfaces:
-        surface = ctx.scene.surfaces[sid]
-        if float(np.linalg.norm(surface.centroid - point)) - _bound(surface) > best_gap:
-            continue
+    for k in np.argsort(lower, kind="stable"):
+        if lower[k] > best_gap:
+            break
+        sid = int(ids[k])
         found = _cached_point(ctx, sid, point, radius)
         if found is None or not _uncovered(ctx, sid, found, radius):
             continue
