@@ -149,11 +149,15 @@ def balance_ik(
 
 
 def active_dofs(ctx: ContactContext, limbs: Sequence[str]) -> NDArray[np.int64]:
-    """Velocity indices (k,) of every dof except those of limbs not in ``limbs``."""
+    """Velocity indices (k,) of every dof except those of limbs not in ``limbs`` (a dof two
+    limbs share, a hip for a foot and the back of its thigh, stays when either is listed)."""
     mask = np.ones(ctx.model.nv, dtype=bool)
     for spec in ctx.character.limbs:
         if spec.name not in limbs:
             mask[spec.idx_v] = False
+    for spec in ctx.character.limbs:
+        if spec.name in limbs:
+            mask[spec.idx_v] = True
     return np.flatnonzero(mask).astype(np.int64)
 
 
