@@ -280,7 +280,7 @@ def humanoid() -> _Robot:
             f"{side}_seat_joint",
             f"{side}_thigh",
             f"{side}_seat",
-            (-0.065, 0, -0.22),
+            (-0.065, 0, -0.1),
             (0, math.pi / 2, 0),
         )
     return r

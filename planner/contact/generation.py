@@ -298,6 +298,7 @@ def _clear_of(
 
 
 _HEADROOM = 0.1  # m of free space wanted above a contact point
+_REAIM_RADIUS = 0.05  # m: a whole-body reach that ends this close is aimed again where it got
 
 
 def _uncovered(ctx: ContactContext, sid: int, point: FloatArray, radius: float) -> bool:
@@ -476,6 +477,8 @@ def _projections(
         if res.success:
             yield np.array(res.q)
     com = com_of(ctx, state.q)
+    surface = ctx.scene.surfaces[cand.surface]
+    radius = _patch_radius(ctx, limb)
     starts = [np.array(state.q)]
     drops = ctx.params.crouch_drops if len(cand.seeds) == 0 and state.contacts else ()
     for k, drop in enumerate((0.0, *drops)):
@@ -497,6 +500,24 @@ def _projections(
         if res.residuals[index, 0] <= 1e-3 and _holds(ctx, res.q, state.contacts):
             yield np.array(res.q)
             return
+        if res.residuals[index, 0] <= _REAIM_RADIUS:
+            # the limb got close: aim again at the point of the surface it reached
+            reached = effector_pose(ctx, limb, np.asarray(res.q))[:3, 3]
+            aim = _point_on(surface, surface.closest_point(reached[None])[0], radius)
+            if aim is None:
+                continue
+            again = balance_ik(
+                ctx,
+                np.array(res.q),
+                state.contacts,
+                com - [0.0, 0.0, drop],
+                extra=[_contact_task(ctx, limb, aim, normal)],
+                axes=(True, True, False),
+                moving=(limb,),
+            )
+            if again.residuals[index, 0] <= 1e-3 and _holds(ctx, again.q, state.contacts):
+                yield np.array(again.q)
+                return
 
 
 def _balanced_after_create(
