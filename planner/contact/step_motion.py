@@ -63,6 +63,9 @@ _STRIDE = 5  # outside the swing, IK every _STRIDE keyframes, interpolated in be
 _FULL_CHECK_STRIDE = 5  # whole-body collision check every this many keyframes
 _REPAIR_TOL = 2e-3  # m, keyframes whose stance slips more are re-solved
 _TRANSITION_SHIFTS = (0.03, 0.06)  # m, moves of the transition point off an obstacle
+_BLEND = 0.3  # s, a re-sampled free limb's posture is blended in and out over this
+_LANDING = 0.2  # s, the keyframes this close to the end settle into the planned state
+_REPOSE_RANKS = (0, 10, 30, 100, 300, 1000, 3000, 10000)  # database samples tried, by rank
 
 
 @dataclass(frozen=True, slots=True)
@@ -107,8 +110,74 @@ def step_motion(
         ),
         None,
     )
-    if normal is None:  # self-collision only: nothing to move away from
+    if normal is not None:  # (self-collision only: nothing to move away from)
+        motion = _shift_transition(ctx, before, after, limb, rate, motion, normal)
+    if motion.report["colliding_keyframes"] > 0:
+        # free arms swept through the thighs or the seat by a deep crouch: keep them in place
+        held = _motion(ctx, before, motion.state, limb, rate, hold_arms=True)
+        held.report["transition_shift"] = motion.report["transition_shift"]
+        if held.report["colliding_keyframes"] < motion.report["colliding_keyframes"]:
+            motion = held
+    if motion.report["colliding_keyframes"] > 0:
+        motion = _repose_free_limbs(ctx, motion, limb)
+    return motion
+
+
+def _repose_free_limbs(ctx: ContactContext, motion: StepMotion, limb: str) -> StepMotion:
+    """``motion`` with the limbs that are free throughout (neither in contact nor swinging)
+    re-sampled (2PAC 7.2): each takes a posture from its sample database, blended in over the
+    first ``_BLEND`` of the motion and out over the last, and the posture leaving the fewest
+    colliding keyframes is kept (``motion`` itself when none does better)."""
+    held = {c.limb for p in motion.phases for c in p.contacts}
+    free = [x for x in ctx.character.default_limbs if x.name != limb and x.name not in held]
+    if not free:
         return motion
+    keys = motion.keyframes
+    t0, t1 = keys[0].t, keys[-1].t
+    ramp = np.array([min(1.0, (k.t - t0) / _BLEND, (t1 - k.t) / _BLEND) for k in keys])
+    ramp = np.clip(ramp, 0.0, 1.0)
+    stances = [_stance_of(motion, k) for k in keys]
+
+    def hits(qs: list[FloatArray]) -> int:
+        return sum(
+            int(self_collides(ctx, q) or bool(scene_collisions(ctx, q, contacts=stance)))
+            for q, stance in zip(qs[1:-1], stances[1:-1], strict=True)
+        )
+
+    base = [np.array(k.q) for k in keys]
+    best, best_hits = base, hits(base)
+    sizes = [len(ctx.data.limb(x.name).database.q) for x in free]
+    for rank in _REPOSE_RANKS:
+        trial = [q.copy() for q in base]
+        for spec, size in zip(free, sizes, strict=True):
+            posture = ctx.data.limb(spec.name).database.q[min(rank, size - 1)]
+            for q, w in zip(trial, ramp, strict=True):
+                q[spec.idx_q] = (1.0 - w) * q[spec.idx_q] + w * posture
+        count = hits(trial)
+        if count < best_hits:
+            best, best_hits = trial, count
+        if best_hits == 0:
+            break
+    if best is base:
+        return motion
+    keyframes = tuple(Keyframe(k.t, q, k.contacts) for k, q in zip(keys, best, strict=True))
+    report = dict(motion.report)
+    report["colliding_keyframes"] = best_hits
+    report["free_limbs_reposed"] = [x.name for x in free]
+    return StepMotion(motion.phases, motion.com, keyframes, report, motion.state)
+
+
+def _shift_transition(
+    ctx: ContactContext,
+    before: ContactState,
+    after: ContactState,
+    limb: str,
+    rate: float,
+    motion: StepMotion,
+    normal: FloatArray,
+) -> StepMotion:
+    """``motion`` recomputed with the transition point moved along the obstacle ``normal``
+    (3,) when that leaves fewer colliding keyframes (2PAC 7.2)."""
     creating = after.contact(limb) is not None
     fewer = before.contacts if creating else after.contacts
     kin_b, kin_a = kinematics_of(ctx, before.contacts), kinematics_of(ctx, after.contacts)
@@ -153,8 +222,10 @@ def _motion(
     after: ContactState,
     limb: str,
     rate: float,
+    hold_arms: bool = False,
 ) -> StepMotion:
-    """:func:`step_motion` for a fixed transition point (the COM of ``after``)."""
+    """:func:`step_motion` for a fixed transition point (the COM of ``after``); with
+    ``hold_arms``, free arms too keep their world pose instead of following the trunk."""
     phase_b, phase_a = phase_of(ctx, before.contacts), phase_of(ctx, after.contacts)
     kin_b, kin_a = kinematics_of(ctx, before.contacts), kinematics_of(ctx, after.contacts)
     c0, c1 = com_of(ctx, before.q), com_of(ctx, after.q)
@@ -204,13 +275,14 @@ def _motion(
     stances = (before.contacts, after.contacts)
     # legs neither in contact nor swinging stay where they hang (a foot lifted earlier does
     # not sink into the floor while the body shifts over the others)
+    grounded = ground_limbs(ctx.character)
     idle = [
         FramePlacementTask(
             other.frame_id, effector_pose(ctx, other.name, before.q), Priority.EFFECTOR
         )
-        for other in ctx.character.limbs
+        for other in ctx.character.default_limbs
         if other.name != limb
-        and other.name in ground_limbs(ctx.character)
+        and (hold_arms or other.name in grounded)
         and before.contact(other.name) is None
         and after.contact(other.name) is None
     ]
@@ -264,6 +336,7 @@ def _motion(
             q = np.array(configs[-1])
         qs[0] = np.array(before.q)
         qs[-1] = np.array(after.q)
+        _land(ctx.model, qs, ts, after.q)
         held = tuple(c for c in before.contacts if c.limb in after.limbs)
         hits = _colliding(ctx, qs, spec_geoms, held)
         if best is None or hits < best[3]:
@@ -358,6 +431,17 @@ def _positions(arc: Callable[[float], FloatArray]) -> Callable[[float], FloatArr
         return np.asarray(arc(t)[:3, 3], dtype=np.float64)
 
     return position
+
+
+def _land(model: Any, qs: list[FloatArray], ts: list[float], goal: FloatArray) -> None:
+    """Blend the keyframes of the last ``_LANDING`` seconds into ``goal`` (nq,) (in place,
+    along the configuration manifold): the motion settles on the state it was planned to
+    reach instead of whatever posture the tracking IK drifted to (a thigh grazing a seat)."""
+    end = ts[-1]
+    for i, t in enumerate(ts):
+        w = (t - (end - _LANDING)) / _LANDING
+        if 0.0 < w < 1.0:
+            qs[i] = np.asarray(pin.interpolate(model, qs[i], goal, w), dtype=np.float64)
 
 
 def _stance_at(t: float, times: FloatArray, stances: tuple[Any, Any]) -> Any:

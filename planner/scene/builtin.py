@@ -236,9 +236,9 @@ def stairs_mesh() -> trimesh.Trimesh:
 
 
 def chair_mesh() -> trimesh.Trimesh:
-    """A chair (seat top at 0.4 m, backrest to 0.95 m) and a table (top at 0.75 m)."""
+    """A chair (seat top at 0.45 m, backrest to 0.95 m) and a table (top at 0.75 m)."""
     parts = [_ground(size=(6.0, 6.0))]
-    seat_lo, seat_hi = np.array([0.3, -0.225, 0.36]), np.array([0.75, 0.225, 0.4])
+    seat_lo, seat_hi = np.array([0.3, -0.225, 0.41]), np.array([0.75, 0.225, 0.45])
     parts.append(_box(seat_lo, seat_hi))
     leg = 0.04
     for x in (seat_lo[0], seat_hi[0] - leg):
