@@ -64,7 +64,7 @@ _FULL_CHECK_STRIDE = 5  # whole-body collision check every this many keyframes
 _REPAIR_TOL = 2e-3  # m, keyframes whose stance slips more are re-solved
 _TRANSITION_SHIFTS = (0.03, 0.06)  # m, moves of the transition point off an obstacle
 _BLEND = 0.3  # s, a re-sampled free limb's posture is blended in and out over this
-_LANDING = 0.2  # s, the keyframes this close to the end settle into the planned state
+_LANDING = 0.8  # s: when keyframes collide, those this close to the end settle into the state
 _REPOSE_RANKS = (0, 10, 30, 100, 300, 1000, 3000, 10000)  # database samples tried, by rank
 
 
@@ -112,9 +112,12 @@ def step_motion(
     )
     if normal is not None:  # (self-collision only: nothing to move away from)
         motion = _shift_transition(ctx, before, after, limb, rate, motion, normal)
-    if motion.report["colliding_keyframes"] > 0:
-        # free arms swept through the thighs or the seat by a deep crouch: keep them in place
-        held = _motion(ctx, before, motion.state, limb, rate, hold_arms=True)
+    # free arms swept through the thighs or the seat by a deep crouch: keep them in place;
+    # a tracking IK that drifts off the swing (a thigh grazing a seat edge): land on the state
+    for landing in (0.0, _LANDING):
+        if motion.report["colliding_keyframes"] == 0:
+            break
+        held = _motion(ctx, before, motion.state, limb, rate, hold_arms=True, landing=landing)
         held.report["transition_shift"] = motion.report["transition_shift"]
         if held.report["colliding_keyframes"] < motion.report["colliding_keyframes"]:
             motion = held
@@ -223,9 +226,11 @@ def _motion(
     limb: str,
     rate: float,
     hold_arms: bool = False,
+    landing: float = 0.0,
 ) -> StepMotion:
     """:func:`step_motion` for a fixed transition point (the COM of ``after``); with
-    ``hold_arms``, free arms too keep their world pose instead of following the trunk."""
+    ``hold_arms``, free arms too keep their world pose instead of following the trunk; the
+    keyframes of the last ``landing`` seconds are blended into ``after``."""
     phase_b, phase_a = phase_of(ctx, before.contacts), phase_of(ctx, after.contacts)
     kin_b, kin_a = kinematics_of(ctx, before.contacts), kinematics_of(ctx, after.contacts)
     c0, c1 = com_of(ctx, before.q), com_of(ctx, after.q)
@@ -271,7 +276,15 @@ def _motion(
     start_pose = effector_pose(ctx, limb, before.q)
     end_pose = effector_pose(ctx, limb, after.q)
     swing_phase = 0 if creating else 1
-    spec_geoms = limb_geometries(ctx, limb)
+    # checked at every keyframe: the swing limb and the limbs hanging free throughout
+    loose = [
+        x.name
+        for x in ctx.character.default_limbs
+        if x.name != limb and before.contact(x.name) is None and after.contact(x.name) is None
+    ]
+    spec_geoms = np.unique(
+        np.concatenate([limb_geometries(ctx, x) for x in (limb, *loose)])
+    ).astype(np.int64)
     stances = (before.contacts, after.contacts)
     # legs neither in contact nor swinging stay where they hang (a foot lifted earlier does
     # not sink into the floor while the body shifts over the others)
@@ -336,7 +349,11 @@ def _motion(
             q = np.array(configs[-1])
         qs[0] = np.array(before.q)
         qs[-1] = np.array(after.q)
-        _land(ctx.model, qs, ts, after.q)
+        if landing > 0.0:
+            for i in _land(ctx.model, qs, ts, after.q, landing):
+                stance = _stance_at(ts[i], times, stances)
+                if hold_error(ctx, qs[i], stance) > 2e-4:  # the blend let go a little
+                    qs[i] = _repair(ctx, qs[i], stance, com_at(ts[i]))
         held = tuple(c for c in before.contacts if c.limb in after.limbs)
         hits = _colliding(ctx, qs, spec_geoms, held)
         if best is None or hits < best[3]:
@@ -433,15 +450,21 @@ def _positions(arc: Callable[[float], FloatArray]) -> Callable[[float], FloatArr
     return position
 
 
-def _land(model: Any, qs: list[FloatArray], ts: list[float], goal: FloatArray) -> None:
-    """Blend the keyframes of the last ``_LANDING`` seconds into ``goal`` (nq,) (in place,
+def _land(
+    model: Any, qs: list[FloatArray], ts: list[float], goal: FloatArray, landing: float
+) -> list[int]:
+    """Blend the keyframes of the last ``landing`` seconds into ``goal`` (nq,) (in place,
     along the configuration manifold): the motion settles on the state it was planned to
-    reach instead of whatever posture the tracking IK drifted to (a thigh grazing a seat)."""
+    reach instead of whatever posture the tracking IK drifted to (a thigh grazing a seat).
+    Returns the indices of the keyframes changed."""
     end = ts[-1]
+    changed = []
     for i, t in enumerate(ts):
-        w = (t - (end - _LANDING)) / _LANDING
+        w = (t - (end - landing)) / landing
         if 0.0 < w < 1.0:
             qs[i] = np.asarray(pin.interpolate(model, qs[i], goal, w), dtype=np.float64)
+            changed.append(i)
+    return changed
 
 
 def _stance_at(t: float, times: FloatArray, stances: tuple[Any, Any]) -> Any:
