@@ -177,16 +177,14 @@ def _collide(ctx: ContactContext, geometry: Any, matrix: FloatArray) -> bool:
     return False
 
 
-def scene_collisions(
+def _touching(
     ctx: ContactContext,
     q: FloatArray,
-    only: Sequence[int] | NDArray[np.int64] | None = None,
-    contacts: Sequence[LimbContact] = (),
-) -> list[str]:
-    """Names of the character's collision geometries touching the scene or obstacles at q
-    (only the geometry indices ``only`` when given). The shapes carrying ``contacts`` touch
-    their surface by design: they are tested raised by ``CONTACT_LIFT`` along the contact
-    normal, so only a real intrusion (a toe in a riser) counts."""
+    only: Sequence[int] | NDArray[np.int64] | None,
+    contacts: Sequence[LimbContact],
+) -> list[tuple[int, FloatArray]]:
+    """(geometry index, world placement (4, 4) it was tested at) of the character's shapes
+    touching the scene or obstacles at ``q``, the shapes carrying ``contacts`` raised."""
     geometry = ctx.character.geometry
     pin.updateGeometryPlacements(ctx.model, ctx.pin_data, geometry, ctx.geom_data, q)
     objects = geometry.geometryObjects
@@ -198,8 +196,22 @@ def scene_collisions(
         if i in raised:
             placement[:3, 3] += raised[i]
         if _collide(ctx, objects[i].geometry, placement):
-            hits.append(str(objects[i].name))
+            hits.append((i, placement))
     return hits
+
+
+def scene_collisions(
+    ctx: ContactContext,
+    q: FloatArray,
+    only: Sequence[int] | NDArray[np.int64] | None = None,
+    contacts: Sequence[LimbContact] = (),
+) -> list[str]:
+    """Names of the character's collision geometries touching the scene or obstacles at q
+    (only the geometry indices ``only`` when given). The shapes carrying ``contacts`` touch
+    their surface by design: they are tested raised by ``CONTACT_LIFT`` along the contact
+    normal, so only a real intrusion (a toe in a riser) counts."""
+    objects = ctx.character.geometry.geometryObjects
+    return [str(objects[i].name) for i, _ in _touching(ctx, q, only, contacts)]
 
 
 def obstacle_normal(
@@ -207,17 +219,9 @@ def obstacle_normal(
 ) -> FloatArray | None:
     """Unit direction (3,) pushing the body at ``q`` out of the scene and the obstacles: the
     mean contact normal over the shapes :func:`scene_collisions` reports; None when none."""
-    geometry = ctx.character.geometry
-    pin.updateGeometryPlacements(ctx.model, ctx.pin_data, geometry, ctx.geom_data, q)
-    objects = geometry.geometryObjects
-    raised = lifted_geometries(ctx.character, [(c.limb, c.normal) for c in contacts])
+    objects = ctx.character.geometry.geometryObjects
     total = np.zeros(3)
-    for i in range(len(objects)):
-        placement = np.array(ctx.geom_data.oMg[i].homogeneous)
-        if i in raised:
-            placement[:3, 3] += raised[i]
-        if not _collide(ctx, objects[i].geometry, placement):
-            continue
+    for i, placement in _touching(ctx, q, None, contacts):
         push = ctx.world.push_direction(objects[i].geometry, placement)
         if push is not None:
             total += push

@@ -310,12 +310,12 @@ def _uncovered(ctx: ContactContext, sid: int, point: FloatArray, radius: float) 
 
     def test() -> bool:
         normal = ctx.scene.surfaces[sid].normal
+        if ctx.scene.inside_solid(point + 0.005 * normal):
+            return False
         r = 0.5 * radius
         pose = np.eye(4)
         pose[:3, :3] = plane_basis(normal).T
         pose[:3, 3] = point + normal * (0.005 + r + 0.5 * _HEADROOM)
-        if ctx.scene.inside_solid(point + 0.005 * normal):
-            return False
         return not ctx.world.collides(Capsule(r, 0.5 * _HEADROOM), pose)
 
     free: bool = ctx.cached(key, test)
@@ -389,9 +389,10 @@ def _candidates(
     desired = target if target is not None else 0.5 * (current + nominal)
     others = [c for c in state.contacts if c.limb != limb]
     # cheap pre-selection on bounding discs before the exact (slower) surface queries
-    ids = np.asarray(surfaces, dtype=np.int64)
-    centres = np.array([ctx.scene.surfaces[i].centroid for i in ids]).reshape(-1, 3)
-    bounds = np.array([_bound(ctx.scene.surfaces[i]) for i in ids])
+    ids, centres, bounds = _surface_spheres(ctx)
+    if len(surfaces) != len(ids):  # a subset of the allowed surfaces (in their order)
+        pick = np.isin(ids, np.asarray(surfaces, dtype=np.int64))
+        ids, centres, bounds = ids[pick], centres[pick], bounds[pick]
     lower = np.maximum(np.linalg.norm(centres - desired, axis=1) - bounds, 0.0)
     keep = np.linalg.norm(centres - base, axis=1) - bounds <= reach
     order = np.argsort(np.where(keep, lower, np.inf), kind="stable")

@@ -337,7 +337,8 @@ def contact_sequence(
             for fraction, rise, over_body in _ADVANCE_TRIES:
                 target_s = min(s + fraction * p.advance, guide.length)
                 target = guide.at(target_s)
-                target[2, 3] = max(target[2, 3], float(current.q[2])) if over_body else target[2, 3]
+                if over_body:
+                    target[2, 3] = max(target[2, 3], float(current.q[2]))
                 target[2, 3] += rise
                 advanced = advance_body(ctx, current, target)
                 if advanced is None:

@@ -186,7 +186,7 @@ def _shift_transition(
     kin_b, kin_a = kinematics_of(ctx, before.contacts), kinematics_of(ctx, after.contacts)
     c1 = com_of(ctx, after.q)
     # lifted legs keep their pose while the body moves (not dragged into the floor)
-    lifted = [x for x in ground_limbs(ctx.character) if after.contact(x) is None]
+    lifted = [x for x in _legs(ctx) if after.contact(x) is None]
     keep = [
         FramePlacementTask(
             ctx.character.limb(x).frame_id, effector_pose(ctx, x, after.q), Priority.EFFECTOR
@@ -211,6 +211,12 @@ def _shift_transition(
         if motion.report["colliding_keyframes"] == 0:
             break
     return motion
+
+
+def _legs(ctx: ContactContext) -> tuple[str, ...]:
+    """The character's ground limbs (memoised in the context)."""
+    legs: tuple[str, ...] = ctx.cached("ground_limbs", lambda: ground_limbs(ctx.character))
+    return legs
 
 
 def _stance_of(motion: StepMotion, key: Keyframe) -> tuple[Any, ...]:
@@ -288,14 +294,14 @@ def _motion(
     stances = (before.contacts, after.contacts)
     # legs neither in contact nor swinging stay where they hang (a foot lifted earlier does
     # not sink into the floor while the body shifts over the others)
-    grounded = ground_limbs(ctx.character)
+    legs = _legs(ctx)
     idle = [
         FramePlacementTask(
             other.frame_id, effector_pose(ctx, other.name, before.q), Priority.EFFECTOR
         )
         for other in ctx.character.default_limbs
         if other.name != limb
-        and (hold_arms or other.name in grounded)
+        and (hold_arms or other.name in legs)
         and before.contact(other.name) is None
         and after.contact(other.name) is None
     ]
