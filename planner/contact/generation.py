@@ -501,8 +501,8 @@ def _projections(
         if res.residuals[index, 0] <= 1e-3 and _holds(ctx, res.q, state.contacts):
             yield np.array(res.q)
             return
-        if res.residuals[index, 0] <= _REAIM_RADIUS:
-            # the limb got close: aim again at the point of the surface it reached
+        if spec.on_request and res.residuals[index, 0] <= _REAIM_RADIUS:
+            # a sit bone got close: aim again at the point of the seat it reached
             reached = effector_pose(ctx, limb, np.asarray(res.q))[:3, 3]
             aim = _point_on(surface, surface.closest_point(reached[None])[0], radius)
             if aim is None:

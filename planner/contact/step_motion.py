@@ -28,6 +28,7 @@ from planner.contact.checks import (
     check_state,
     com_of,
     effector_pose,
+    forward,
     hold_error,
     kinematics_of,
     obstacle_normal,
@@ -42,6 +43,7 @@ from planner.contact.state import ContactState
 from planner.kinematics import (
     ComTask,
     FramePlacementTask,
+    FramePositionTask,
     Priority,
     keyframe_times,
     solve_ik,
@@ -60,7 +62,7 @@ _ACC_MANY = 0.2  # m/s^2, peak COM acceleration over the larger contact set (bre
 _SETTLE = 0.1  # s, the short phase without swing
 _N_CHECKS = 5  # dynamic checks per phase
 _STRIDE = 5  # outside the swing, IK every _STRIDE keyframes, interpolated in between
-_FULL_CHECK_STRIDE = 5  # whole-body collision check every this many keyframes
+_FULL_CHECK_STRIDE = 1  # whole-body collision check every this many keyframes
 _REPAIR_TOL = 2e-3  # m, keyframes whose stance slips more are re-solved
 _TRANSITION_SHIFTS = (0.03, 0.06)  # m, moves of the transition point off an obstacle
 _BLEND = 0.3  # s, a re-sampled free limb's posture is blended in and out over this
@@ -219,6 +221,31 @@ def _legs(ctx: ContactContext) -> tuple[str, ...]:
     return legs
 
 
+def _braced_elbows(
+    ctx: ContactContext,
+    before: ContactState,
+    after: ContactState,
+    limb: str,
+    legs: Sequence[str],
+) -> list[FramePositionTask]:
+    """Soft holds keeping the middle joint (the elbow) of each arm braced on a contact in both
+    states where it was in ``before``: the crouch that shifts the trunk over the other
+    contacts would otherwise fold the forearm onto the surface the hand rests on."""
+    model, data = ctx.model, ctx.pin_data
+    forward(ctx, before.q)
+    tasks = []
+    for spec in ctx.character.limbs:
+        if spec.name == limb or spec.name in legs or len(spec.joint_ids) < 3:
+            continue
+        if before.contact(spec.name) is None or after.contact(spec.name) is None:
+            continue
+        joint = int(spec.joint_ids[len(spec.joint_ids) // 2])
+        frame = model.getFrameId(model.names[joint])
+        where = np.array(data.oMf[frame].translation)
+        tasks.append(FramePositionTask(frame, where, priority=Priority.EFFECTOR, weight=0.3))
+    return tasks
+
+
 def _stance_of(motion: StepMotion, key: Keyframe) -> tuple[Any, ...]:
     """The contacts held at keyframe ``key`` (those of its phase that it lists)."""
     phase = motion.phases[0] if key.t < motion.phases[0].t1 else motion.phases[1]
@@ -305,6 +332,7 @@ def _motion(
         and before.contact(other.name) is None
         and after.contact(other.name) is None
     ]
+    idle.extend(_braced_elbows(ctx, before, after, limb, legs))
     best: tuple[list[FloatArray], list[float], float, int, float] | None = None
     for lift in _LIFTS:
         qs: list[FloatArray] = []
@@ -462,11 +490,12 @@ def _land(
     """Blend the keyframes of the last ``landing`` seconds into ``goal`` (nq,) (in place,
     along the configuration manifold): the motion settles on the state it was planned to
     reach instead of whatever posture the tracking IK drifted to (a thigh grazing a seat).
-    Returns the indices of the keyframes changed."""
+    The first and last keyframes are never changed. Returns the indices of those changed."""
     end = ts[-1]
+    window = min(landing, end - ts[0])  # a short motion blends from its start, not mid-way
     changed = []
-    for i, t in enumerate(ts):
-        w = (t - (end - landing)) / landing
+    for i in range(1, len(ts) - 1):
+        w = (ts[i] - (end - window)) / window
         if 0.0 < w < 1.0:
             qs[i] = np.asarray(pin.interpolate(model, qs[i], goal, w), dtype=np.float64)
             changed.append(i)
