@@ -332,7 +332,7 @@ def _motion(
         and before.contact(other.name) is None
         and after.contact(other.name) is None
     ]
-    idle.extend(_braced_elbows(ctx, before, after, limb, legs))
+    braced = _braced_elbows(ctx, before, after, limb, legs)
     best: tuple[list[FloatArray], list[float], float, int, float] | None = None
     for lift in _LIFTS:
         qs: list[FloatArray] = []
@@ -358,7 +358,7 @@ def _motion(
                 ctx.model,
                 q,
                 (knots, com_samples(knots)),
-                stance=[*hold_tasks(stances[j], ctx), *idle],
+                stance=[*hold_tasks(stances[j], ctx), *idle, *braced],
                 swing_frame=frame,
                 swing=swing,
                 reference=after.q,
