@@ -66,6 +66,7 @@ def character_detail(character: Character) -> schemas.CharacterDetail:
             half_size=(float(limb.half_size[0]), float(limb.half_size[1])),
             normal=_vec(limb.normal),
             mu=float(limb.mu),
+            on_request=limb.on_request,
         )
         for limb in character.limbs
     ]

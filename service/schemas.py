@@ -52,6 +52,10 @@ class LimbInfo(BaseModel):
     half_size: tuple[float, float] = Field(description="half-sizes of the contact patch, metres")
     normal: Vector3 = Field(description="contact normal in the effector frame")
     mu: float = Field(description="default friction coefficient")
+    on_request: bool = Field(
+        default=False,
+        description="used only when a request names it (a sit bone); Twister auto skips it",
+    )
 
 
 class CharacterSummary(BaseModel):

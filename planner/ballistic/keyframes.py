@@ -126,7 +126,7 @@ class LimbCollider:
         objects = list(self.gmodel.geometryObjects)
         self.geoms: list[list[int]] = [
             [i for i, o in enumerate(objects) if int(o.parentJoint) in set(limb.joint_ids.tolist())]
-            for limb in character.limbs
+            for limb in character.default_limbs
         ]
 
     def colliding(self, q: FloatArray, only: int | None = None) -> BoolArray:
@@ -179,7 +179,7 @@ class JumpAnimator:
     candidates: int = 8
 
     def _contact_task(self, k: int, point: FloatArray, normal: FloatArray) -> Task:
-        limb = self.character.limbs[k]
+        limb = self.character.default_limbs[k]
         if limb.contact == "point":
             return FramePositionTask(limb.effector_frame, point, limb.offset, Priority.CONTACT)
         return ContactNormalTask(
@@ -201,7 +201,7 @@ class JumpAnimator:
         normal: FloatArray,
     ) -> FloatArray | None:
         """``q`` with limb k's contact on ``point`` (IK seeded from the database), or None."""
-        limb = self.character.limbs[k]
+        limb = self.character.default_limbs[k]
         database = self.data.limb(limb.name).database
         target = rot.T @ (point - position)
         tree = _tree(self.data, limb.name)
@@ -256,11 +256,13 @@ class JumpAnimator:
                 [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
             ]
         )
-        achieved = np.zeros(len(char.limbs), dtype=bool)
+        achieved = np.zeros(len(char.default_limbs), dtype=bool)
         reached = np.array(points, dtype=np.float64)
-        reference = frame_placements(char.model, q, [limb.effector_frame for limb in char.limbs])
+        reference = frame_placements(
+            char.model, q, [limb.effector_frame for limb in char.default_limbs]
+        )
         for k in (int(i) for i in np.flatnonzero(active)):
-            limb = char.limbs[k]
+            limb = char.default_limbs[k]
             target = np.asarray(points[k], dtype=np.float64)
             found = self._project(q, k, rot, position, target, normals[k])
             surface = surfaces[k] if surfaces is not None else None
@@ -278,7 +280,7 @@ class JumpAnimator:
                 q = found
                 achieved[k] = True
                 reached[k] = target
-        frames = [limb.effector_frame for limb in char.limbs]
+        frames = [limb.effector_frame for limb in char.default_limbs]
         placements = frame_placements(char.model, q, frames)
         return Stance(q, achieved, placements, reached)
 
@@ -286,7 +288,7 @@ class JumpAnimator:
         tasks: list[Task] = []
         dofs: list[IntArray] = []
         for k in np.flatnonzero(stance.achieved):
-            limb = self.character.limbs[k]
+            limb = self.character.default_limbs[k]
             if limb.contact == "point":
                 tasks.append(
                     FramePositionTask(
@@ -375,8 +377,12 @@ class JumpAnimator:
         kt = np.array(knots_t)
         kj = np.array(knots_j)
 
-        take_names = tuple(self.character.limbs[k].name for k in np.flatnonzero(takeoff.achieved))
-        land_names = tuple(self.character.limbs[k].name for k in np.flatnonzero(landing.achieved))
+        take_names = tuple(
+            self.character.default_limbs[k].name for k in np.flatnonzero(takeoff.achieved)
+        )
+        land_names = tuple(
+            self.character.default_limbs[k].name for k in np.flatnonzero(landing.achieved)
+        )
         frames: list[Keyframe] = [Keyframe(t0, np.array(takeoff.q), take_names)]
         frames.extend(Keyframe(t0 + tau, q, take_names) for tau, q in forward)
         flight = grid[(grid > t_break) & (grid < t_create)]
@@ -411,7 +417,7 @@ class JumpAnimator:
         out = np.array(q)
         fixed = 0
         for k in (int(i) for i in np.flatnonzero(hit)):
-            limb = self.character.limbs[k]
+            limb = self.character.default_limbs[k]
             database = self.data.limb(limb.name).database
             options = [self.character.q_ref[limb.idx_q], q_break[limb.idx_q], q_create[limb.idx_q]]
             options.extend(database.q[: self.candidates])

@@ -345,17 +345,19 @@ class ReducedModel:
         limbs' friction, ``margin`` (m) inflates the trunk (see ``TrunkCollider``)."""
         kinds = {SurfaceKind.SUPPORT, SurfaceKind.LEAN} if lean else {SurfaceKind.SUPPORT}
         surfaces = tuple(s for s in scene.surfaces if s.kind in kinds)
-        hulls = [_reduced(data, limb.name) for limb in character.limbs]
+        hulls = [_reduced(data, limb.name) for limb in character.default_limbs]
         workspaces = tuple(hull for hull, _ in hulls)
-        ref = np.zeros((len(character.limbs), 3))
+        ref = np.zeros((len(character.default_limbs), 3))
         root_rot = quaternion_to_matrix(character.q_ref[3:7])
         root_pos = character.q_ref[:3]
-        for k, limb in enumerate(character.limbs):
+        for k, limb in enumerate(character.default_limbs):
             eff = frame_placement(character.model, character.q_ref, limb.effector_frame)
             point = eff[:3, :3] @ limb.offset + eff[:3, 3]
             ref[k] = root_rot.T @ (point - root_pos)
         stance = np.flatnonzero(ref[:, 2] <= ref[:, 2].min() + 0.05).astype(np.int64)
-        mus = np.array([limb.mu if mu is None else mu for limb in character.limbs], np.float64)
+        mus = np.array(
+            [limb.mu if mu is None else mu for limb in character.default_limbs], np.float64
+        )
         plane = np.array([[*s.normal, -float(s.normal @ s.centroid)] for s in surfaces])
         boxes = np.array(
             [

@@ -123,8 +123,8 @@ class JumpParams:
     def limbs_needed(self, character: Character) -> int:
         """The number of contacts a node needs for ``character``."""
         if self.min_limbs is not None:
-            return min(self.min_limbs, len(character.limbs))
-        return (len(character.limbs) + 1) // 2
+            return min(self.min_limbs, len(character.default_limbs))
+        return (len(character.default_limbs) + 1) // 2
 
     def model_key(self, scene: Scene, character: Character, data: OfflineData) -> str:
         """Identifies the reduced model: scene content, character data, sampler settings."""
@@ -438,7 +438,7 @@ def _synthesise(
 
 
 def _names(character: Character, stance: Stance) -> tuple[str, ...]:
-    return tuple(character.limbs[k].name for k in np.flatnonzero(stance.achieved))
+    return tuple(character.default_limbs[k].name for k in np.flatnonzero(stance.achieved))
 
 
 def _end(
@@ -454,7 +454,7 @@ def _end(
     achieved = stance.achieved & np.asarray(row["active"], dtype=bool)
     contacts = tuple(
         JumpContact(
-            char.limbs[k].name,
+            char.default_limbs[k].name,
             _ro(stance.points[k]),
             _ro(row["normals"][k]),
             float(row["mus"][k]),

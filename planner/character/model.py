@@ -63,6 +63,7 @@ class Limb:
     joint_ids: IntArray
     frame_id: int
     posture_weights: FloatArray
+    on_request: bool = False
 
     @property
     def n_joints(self) -> int:
@@ -114,6 +115,12 @@ class Character:
     def q_ref_joints(self) -> FloatArray:
         """(n,) joint values of the reference posture."""
         return np.asarray(self.q_ref[7:], dtype=np.float64)
+
+    @property
+    def default_limbs(self) -> tuple[Limb, ...]:
+        """The limbs used unless asked otherwise: all but the ``on_request`` ones (the back of
+        the thighs for sitting), which the Twister game and jumps leave alone."""
+        return tuple(limb for limb in self.limbs if not limb.on_request)
 
     def limb(self, name: str) -> Limb:
         """The limb called ``name``; KeyError if absent."""
@@ -205,6 +212,7 @@ def _limb(model: Any, spec: LimbSpec, i: int) -> Limb:
         joint_ids=_ro(chain, np.int64),
         frame_id=int(frame_id),
         posture_weights=_ro(weights),
+        on_request=spec.on_request,
     )
 
 

@@ -52,6 +52,7 @@ class LimbSpec:
     offset: tuple[float, float, float]
     mu: float
     posture_weights: tuple[tuple[str, float], ...]
+    on_request: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -140,6 +141,12 @@ def _weights(value: Any, field: str, nonneg: bool = True) -> tuple[tuple[str, fl
     )
 
 
+def _flag(value: Any, where: str) -> bool:
+    if not isinstance(value, bool):
+        raise SpecError(where, f"expected true or false, got {value!r}")
+    return value
+
+
 def _limb(raw: Any, i: int) -> LimbSpec:
     where = f"limbs[{i}]"
     item = _mapping(raw, where)
@@ -169,6 +176,7 @@ def _limb(raw: Any, i: int) -> LimbSpec:
         offset=_vec3(item.get("offset", [0.0, 0.0, 0.0]), f"{where}.offset"),
         mu=mu,
         posture_weights=_weights(item.get("posture_weights"), f"{where}.posture_weights"),
+        on_request=_flag(item.get("on_request", False), f"{where}.on_request"),
     )
 
 

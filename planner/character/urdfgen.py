@@ -272,6 +272,17 @@ def humanoid() -> _Robot:
             (0, -0.015 * s, -0.06),
             (-math.pi / 2 * s, 0.0, 0.0),
         )
+    for side in ("l", "r"):
+        # Sit-bone frame on the thigh's axis near the hip: z axis out of the back of the thigh
+        # (a seat's normal when the hip is flexed 90 degrees), x axis toward the knee.
+        r.link(f"{side}_seat", 0.0, None)
+        r.fixed(
+            f"{side}_seat_joint",
+            f"{side}_thigh",
+            f"{side}_seat",
+            (0.0, 0, -0.1),
+            (0, math.pi / 2, 0),
+        )
     return r
 
 

@@ -181,8 +181,9 @@ def contact_points(limb: Limb, placement: FloatArray, normal: FloatArray) -> Flo
 def reference_contact(limb: Limb, placement: FloatArray) -> tuple[FloatArray, FloatArray]:
     """(contact points (k, 3), unit normal (3,)) of ``limb`` with its effector at ``placement``
     (4, 4) as the reference posture means it: a patch on the plane of its contact normal, a
-    point contact on level ground (normal +z)."""
-    if limb.contact == "point":
+    point foot on level ground (normal +z); a point limb used on request (a sit bone, not
+    touching anything in the reference posture) along its frame's contact normal."""
+    if limb.contact == "point" and not limb.on_request:
         normal = np.array([0.0, 0.0, 1.0])
     else:
         normal = placement[:3, :3] @ np.asarray(limb.normal, dtype=np.float64)

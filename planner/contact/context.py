@@ -120,8 +120,8 @@ class ContactContext:
         return self.character.model
 
     def limb_names(self) -> tuple[str, ...]:
-        """Limb names in the character's order."""
-        return tuple(limb.name for limb in self.character.limbs)
+        """Names of the default limbs (not the ``on_request`` ones) in the character's order."""
+        return tuple(limb.name for limb in self.character.default_limbs)
 
     def has_limb(self, name: str) -> bool:
         """Whether the character has a limb called ``name``."""

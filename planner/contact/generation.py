@@ -149,11 +149,15 @@ def balance_ik(
 
 
 def active_dofs(ctx: ContactContext, limbs: Sequence[str]) -> NDArray[np.int64]:
-    """Velocity indices (k,) of every dof except those of limbs not in ``limbs``."""
+    """Velocity indices (k,) of every dof except those of limbs not in ``limbs`` (a dof two
+    limbs share, a hip for a foot and the back of its thigh, stays when either is listed)."""
     mask = np.ones(ctx.model.nv, dtype=bool)
     for spec in ctx.character.limbs:
         if spec.name not in limbs:
             mask[spec.idx_v] = False
+    for spec in ctx.character.limbs:
+        if spec.name in limbs:
+            mask[spec.idx_v] = True
     return np.flatnonzero(mask).astype(np.int64)
 
 
@@ -294,6 +298,7 @@ def _clear_of(
 
 
 _HEADROOM = 0.1  # m of free space wanted above a contact point
+_REAIM_RADIUS = 0.05  # m: a whole-body reach that ends this close is aimed again where it got
 
 
 def _uncovered(ctx: ContactContext, sid: int, point: FloatArray, radius: float) -> bool:
@@ -473,6 +478,8 @@ def _projections(
         if res.success:
             yield np.array(res.q)
     com = com_of(ctx, state.q)
+    surface = ctx.scene.surfaces[cand.surface]
+    radius = _patch_radius(ctx, limb)
     starts = [np.array(state.q)]
     drops = ctx.params.crouch_drops if len(cand.seeds) == 0 and state.contacts else ()
     for k, drop in enumerate((0.0, *drops)):
@@ -494,6 +501,24 @@ def _projections(
         if res.residuals[index, 0] <= 1e-3 and _holds(ctx, res.q, state.contacts):
             yield np.array(res.q)
             return
+        if spec.on_request and res.residuals[index, 0] <= _REAIM_RADIUS:
+            # a sit bone got close: aim again at the point of the seat it reached
+            reached = effector_pose(ctx, limb, np.asarray(res.q))[:3, 3]
+            aim = _point_on(surface, surface.closest_point(reached[None])[0], radius)
+            if aim is None:
+                continue
+            again = balance_ik(
+                ctx,
+                np.array(res.q),
+                state.contacts,
+                com - [0.0, 0.0, drop],
+                extra=[_contact_task(ctx, limb, aim, normal)],
+                axes=(True, True, False),
+                moving=(limb,),
+            )
+            if again.residuals[index, 0] <= 1e-3 and _holds(ctx, again.q, state.contacts):
+                yield np.array(again.q)
+                return
 
 
 def _balanced_after_create(

@@ -169,6 +169,13 @@ def twister_step(
         reason = last.reason or FailureReason.NOTHING_REACHABLE
         return failed(reason, last.message, last.limb)
     kind, attempt, motion = best
+    colliding = int(motion.report["colliding_keyframes"])
+    if colliding > 0:  # every motion found sweeps through something: refuse, say where
+        return failed(
+            FailureReason.COLLISION,
+            f"every motion found collides ({colliding} keyframes at best, {attempt.limb})",
+            attempt.limb,
+        )
     timings["total"] = time.perf_counter() - t_start
     report = dict(motion.report)
     report["attempts"] = attempts

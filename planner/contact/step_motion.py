@@ -28,6 +28,7 @@ from planner.contact.checks import (
     check_state,
     com_of,
     effector_pose,
+    forward,
     hold_error,
     kinematics_of,
     obstacle_normal,
@@ -42,6 +43,7 @@ from planner.contact.state import ContactState
 from planner.kinematics import (
     ComTask,
     FramePlacementTask,
+    FramePositionTask,
     Priority,
     keyframe_times,
     solve_ik,
@@ -60,9 +62,12 @@ _ACC_MANY = 0.2  # m/s^2, peak COM acceleration over the larger contact set (bre
 _SETTLE = 0.1  # s, the short phase without swing
 _N_CHECKS = 5  # dynamic checks per phase
 _STRIDE = 5  # outside the swing, IK every _STRIDE keyframes, interpolated in between
-_FULL_CHECK_STRIDE = 5  # whole-body collision check every this many keyframes
+_FULL_CHECK_STRIDE = 1  # whole-body collision check every this many keyframes
 _REPAIR_TOL = 2e-3  # m, keyframes whose stance slips more are re-solved
 _TRANSITION_SHIFTS = (0.03, 0.06)  # m, moves of the transition point off an obstacle
+_BLEND = 0.3  # s, a re-sampled free limb's posture is blended in and out over this
+_LANDING = 0.8  # s: when keyframes collide, those this close to the end settle into the state
+_REPOSE_RANKS = (0, 10, 30, 100, 300, 1000, 3000, 10000)  # database samples tried, by rank
 
 
 @dataclass(frozen=True, slots=True)
@@ -107,8 +112,77 @@ def step_motion(
         ),
         None,
     )
-    if normal is None:  # self-collision only: nothing to move away from
+    if normal is not None:  # (self-collision only: nothing to move away from)
+        motion = _shift_transition(ctx, before, after, limb, rate, motion, normal)
+    # free arms swept through the thighs or the seat by a deep crouch: keep them in place;
+    # a tracking IK that drifts off the swing (a thigh grazing a seat edge): land on the state
+    for landing in (0.0, _LANDING):
+        if motion.report["colliding_keyframes"] == 0:
+            break
+        held = _motion(ctx, before, motion.state, limb, rate, hold_arms=True, landing=landing)
+        held.report["transition_shift"] = motion.report["transition_shift"]
+        if held.report["colliding_keyframes"] < motion.report["colliding_keyframes"]:
+            motion = held
+    if motion.report["colliding_keyframes"] > 0:
+        motion = _repose_free_limbs(ctx, motion, limb)
+    return motion
+
+
+def _repose_free_limbs(ctx: ContactContext, motion: StepMotion, limb: str) -> StepMotion:
+    """``motion`` with the limbs that are free throughout (neither in contact nor swinging)
+    re-sampled (2PAC 7.2): each takes a posture from its sample database, blended in over the
+    first ``_BLEND`` of the motion and out over the last, and the posture leaving the fewest
+    colliding keyframes is kept (``motion`` itself when none does better)."""
+    held = {c.limb for p in motion.phases for c in p.contacts}
+    free = [x for x in ctx.character.default_limbs if x.name != limb and x.name not in held]
+    if not free:
         return motion
+    keys = motion.keyframes
+    t0, t1 = keys[0].t, keys[-1].t
+    ramp = np.array([min(1.0, (k.t - t0) / _BLEND, (t1 - k.t) / _BLEND) for k in keys])
+    ramp = np.clip(ramp, 0.0, 1.0)
+    stances = [_stance_of(motion, k) for k in keys]
+
+    def hits(qs: list[FloatArray]) -> int:
+        return sum(
+            int(self_collides(ctx, q) or bool(scene_collisions(ctx, q, contacts=stance)))
+            for q, stance in zip(qs[1:-1], stances[1:-1], strict=True)
+        )
+
+    base = [np.array(k.q) for k in keys]
+    best, best_hits = base, hits(base)
+    sizes = [len(ctx.data.limb(x.name).database.q) for x in free]
+    for rank in _REPOSE_RANKS:
+        trial = [q.copy() for q in base]
+        for spec, size in zip(free, sizes, strict=True):
+            posture = ctx.data.limb(spec.name).database.q[min(rank, size - 1)]
+            for q, w in zip(trial, ramp, strict=True):
+                q[spec.idx_q] = (1.0 - w) * q[spec.idx_q] + w * posture
+        count = hits(trial)
+        if count < best_hits:
+            best, best_hits = trial, count
+        if best_hits == 0:
+            break
+    if best is base:
+        return motion
+    keyframes = tuple(Keyframe(k.t, q, k.contacts) for k, q in zip(keys, best, strict=True))
+    report = dict(motion.report)
+    report["colliding_keyframes"] = best_hits
+    report["free_limbs_reposed"] = [x.name for x in free]
+    return StepMotion(motion.phases, motion.com, keyframes, report, motion.state)
+
+
+def _shift_transition(
+    ctx: ContactContext,
+    before: ContactState,
+    after: ContactState,
+    limb: str,
+    rate: float,
+    motion: StepMotion,
+    normal: FloatArray,
+) -> StepMotion:
+    """``motion`` recomputed with the transition point moved along the obstacle ``normal``
+    (3,) when that leaves fewer colliding keyframes (2PAC 7.2)."""
     creating = after.contact(limb) is not None
     fewer = before.contacts if creating else after.contacts
     kin_b, kin_a = kinematics_of(ctx, before.contacts), kinematics_of(ctx, after.contacts)
@@ -147,6 +221,31 @@ def _legs(ctx: ContactContext) -> tuple[str, ...]:
     return legs
 
 
+def _braced_elbows(
+    ctx: ContactContext,
+    before: ContactState,
+    after: ContactState,
+    limb: str,
+    legs: Sequence[str],
+) -> list[FramePositionTask]:
+    """Soft holds keeping the middle joint (the elbow) of each arm braced on a contact in both
+    states where it was in ``before``: the crouch that shifts the trunk over the other
+    contacts would otherwise fold the forearm onto the surface the hand rests on."""
+    model, data = ctx.model, ctx.pin_data
+    forward(ctx, before.q)
+    tasks = []
+    for spec in ctx.character.limbs:
+        if spec.name == limb or spec.name in legs or len(spec.joint_ids) < 3:
+            continue
+        if before.contact(spec.name) is None or after.contact(spec.name) is None:
+            continue
+        joint = int(spec.joint_ids[len(spec.joint_ids) // 2])
+        frame = model.getFrameId(model.names[joint])
+        where = np.array(data.oMf[frame].translation)
+        tasks.append(FramePositionTask(frame, where, priority=Priority.EFFECTOR, weight=0.3))
+    return tasks
+
+
 def _stance_of(motion: StepMotion, key: Keyframe) -> tuple[Any, ...]:
     """The contacts held at keyframe ``key`` (those of its phase that it lists)."""
     phase = motion.phases[0] if key.t < motion.phases[0].t1 else motion.phases[1]
@@ -159,8 +258,12 @@ def _motion(
     after: ContactState,
     limb: str,
     rate: float,
+    hold_arms: bool = False,
+    landing: float = 0.0,
 ) -> StepMotion:
-    """:func:`step_motion` for a fixed transition point (the COM of ``after``)."""
+    """:func:`step_motion` for a fixed transition point (the COM of ``after``); with
+    ``hold_arms``, free arms too keep their world pose instead of following the trunk; the
+    keyframes of the last ``landing`` seconds are blended into ``after``."""
     phase_b, phase_a = phase_of(ctx, before.contacts), phase_of(ctx, after.contacts)
     kin_b, kin_a = kinematics_of(ctx, before.contacts), kinematics_of(ctx, after.contacts)
     c0, c1 = com_of(ctx, before.q), com_of(ctx, after.q)
@@ -206,7 +309,15 @@ def _motion(
     start_pose = effector_pose(ctx, limb, before.q)
     end_pose = effector_pose(ctx, limb, after.q)
     swing_phase = 0 if creating else 1
-    spec_geoms = limb_geometries(ctx, limb)
+    # checked at every keyframe: the swing limb and the limbs hanging free throughout
+    loose = [
+        x.name
+        for x in ctx.character.default_limbs
+        if x.name != limb and before.contact(x.name) is None and after.contact(x.name) is None
+    ]
+    spec_geoms = np.unique(
+        np.concatenate([limb_geometries(ctx, x) for x in (limb, *loose)])
+    ).astype(np.int64)
     stances = (before.contacts, after.contacts)
     # legs neither in contact nor swinging stay where they hang (a foot lifted earlier does
     # not sink into the floor while the body shifts over the others)
@@ -215,12 +326,13 @@ def _motion(
         FramePlacementTask(
             other.frame_id, effector_pose(ctx, other.name, before.q), Priority.EFFECTOR
         )
-        for other in ctx.character.limbs
+        for other in ctx.character.default_limbs
         if other.name != limb
-        and other.name in legs
+        and (hold_arms or other.name in legs)
         and before.contact(other.name) is None
         and after.contact(other.name) is None
     ]
+    braced = _braced_elbows(ctx, before, after, limb, legs)
     best: tuple[list[FloatArray], list[float], float, int, float] | None = None
     for lift in _LIFTS:
         qs: list[FloatArray] = []
@@ -246,7 +358,7 @@ def _motion(
                 ctx.model,
                 q,
                 (knots, com_samples(knots)),
-                stance=[*hold_tasks(stances[j], ctx), *idle],
+                stance=[*hold_tasks(stances[j], ctx), *idle, *braced],
                 swing_frame=frame,
                 swing=swing,
                 reference=after.q,
@@ -271,6 +383,11 @@ def _motion(
             q = np.array(configs[-1])
         qs[0] = np.array(before.q)
         qs[-1] = np.array(after.q)
+        if landing > 0.0:
+            for i in _land(ctx.model, qs, ts, after.q, landing):
+                stance = _stance_at(ts[i], times, stances)
+                if hold_error(ctx, qs[i], stance) > 2e-4:  # the blend let go a little
+                    qs[i] = _repair(ctx, qs[i], stance, com_at(ts[i]))
         held = tuple(c for c in before.contacts if c.limb in after.limbs)
         hits = _colliding(ctx, qs, spec_geoms, held)
         if best is None or hits < best[3]:
@@ -365,6 +482,24 @@ def _positions(arc: Callable[[float], FloatArray]) -> Callable[[float], FloatArr
         return np.asarray(arc(t)[:3, 3], dtype=np.float64)
 
     return position
+
+
+def _land(
+    model: Any, qs: list[FloatArray], ts: list[float], goal: FloatArray, landing: float
+) -> list[int]:
+    """Blend the keyframes of the last ``landing`` seconds into ``goal`` (nq,) (in place,
+    along the configuration manifold): the motion settles on the state it was planned to
+    reach instead of whatever posture the tracking IK drifted to (a thigh grazing a seat).
+    The first and last keyframes are never changed. Returns the indices of those changed."""
+    end = ts[-1]
+    window = min(landing, end - ts[0])  # a short motion blends from its start, not mid-way
+    changed = []
+    for i in range(1, len(ts) - 1):
+        w = (ts[i] - (end - window)) / window
+        if 0.0 < w < 1.0:
+            qs[i] = np.asarray(pin.interpolate(model, qs[i], goal, w), dtype=np.float64)
+            changed.append(i)
+    return changed
 
 
 def _stance_at(t: float, times: FloatArray, stances: tuple[Any, Any]) -> Any:

@@ -43,8 +43,14 @@ async def test_characters_list_and_detail(client: httpx.AsyncClient) -> None:
     assert set(reference["joints"]) == set(detail["joints"])
     assert math.isclose(np.linalg.norm(reference["root"]["orientation"]), 1.0, rel_tol=1e-9)
     limbs = {limb["name"]: limb for limb in detail["limbs"]}
-    assert len(limbs) == 4
-    assert all(limb["contact"] == "patch" for limb in limbs.values())
+    assert len(limbs) == 6
+    assert {name for name, limb in limbs.items() if limb["on_request"]} == {
+        "left_seat",
+        "right_seat",
+    }
+    assert all(
+        limb["contact"] == ("point" if limb["on_request"] else "patch") for limb in limbs.values()
+    )
     quadruped = (await client.get("/v1/characters/quadruped")).json()
     assert all(limb["contact"] == "point" for limb in quadruped["limbs"])
     assert len(quadruped["joints"]) == 12

@@ -51,11 +51,13 @@ def test_builtin_character_shapes(cid: str) -> None:
         "quadruped": (4, 20.0, 30.0),
         "hexapod": (6, 3.0, 10.0),
     }[cid]
-    assert len(c.limbs) == expected[0]
+    assert len(c.default_limbs) == expected[0]
     assert expected[1] <= c.mass <= expected[2]
     assert c.mass == pytest.approx(pin.computeTotalMass(c.model))
     assert len(c.geometry.geometryObjects) > 0 and len(c.geometry.collisionPairs) > 0
-    for limb in c.limbs:
+    on_request = [limb.name for limb in c.limbs if limb.on_request]
+    assert on_request == (["left_seat", "right_seat"] if cid == "humanoid" else [])
+    for limb in c.default_limbs:
         assert cid == "humanoid" or limb.n_joints == 3
         assert limb.contact == ("patch" if cid == "humanoid" else "point")
 
@@ -63,7 +65,7 @@ def test_builtin_character_shapes(cid: str) -> None:
 def test_humanoid_joints_and_patches() -> None:
     c = get_character("humanoid")
     assert c.n_joints >= 28
-    assert [limb.n_joints for limb in c.limbs] == [6, 6, 7, 7]
+    assert [limb.n_joints for limb in c.limbs] == [6, 6, 7, 7, 3, 3]  # feet, hands, sit bones
     assert c.limb("left_foot").contact_points().shape == (4, 3)
     np.testing.assert_allclose(c.limb("left_foot").half_size, [0.11, 0.05])
     np.testing.assert_allclose(c.limb("left_hand").half_size, [0.04, 0.04])

@@ -48,7 +48,7 @@ def test_flying_and_buried_poses_are_invalid() -> None:
     check = checker("humanoid", "flat")
     flying = standing_pose("humanoid", (0.0, 0.0, 2.0))
     touching = check.limbs_touching(flying[None])
-    assert touching.shape == (1, 4)
+    assert touching.shape == (1, 6)  # every limb, the two on-request sit bones included
     assert not touching.any()
     assert not check.is_valid(flying)
     buried = standing_pose("humanoid", (0.0, 0.0, -0.95))  # trunk through the floor
