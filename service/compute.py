@@ -162,7 +162,9 @@ def run_twister_step(request_json: str, seed: int) -> dict[str, Any]:
             state = made.state
         else:
             assert request.stand_at is not None
-            standing = standing_state(scene, character, data, np.asarray(request.stand_at), rng=rng)
+            standing = standing_state(
+                scene, character, data, np.asarray(request.stand_at), rng=rng, yaw=request.yaw
+            )
             if not standing.status or standing.value is None:
                 raise invalid(f"no standing state there: {standing.message}", "stand_at")
             contacts = {c.limb: c.surface for c in standing.value.contacts}

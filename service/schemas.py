@@ -250,6 +250,12 @@ class TwisterStepRequest(BaseModel):
     scene: str = Field(max_length=128)
     state: StateIn | None = Field(default=None, description="current state; or use stand_at")
     stand_at: Point3 | None = Field(default=None, description="start standing at this point")
+    yaw: float | None = Field(
+        default=None,
+        ge=-7.0,
+        le=7.0,
+        description="rad, heading of the stand_at state (about +z; default: any that stands)",
+    )
     action: StepActionIn
     others: list[OtherCharacterIn] = Field(default_factory=list, max_length=8)
     surfaces: list[Annotated[int, Field(ge=0)]] | None = Field(
@@ -265,6 +271,8 @@ class TwisterStepRequest(BaseModel):
     def _state_or_stand(self) -> TwisterStepRequest:
         if (self.state is None) == (self.stand_at is None):
             raise ValueError("give exactly one of 'state' or 'stand_at'")
+        if self.yaw is not None and self.stand_at is None:
+            raise ValueError("'yaw' goes with 'stand_at' (a state has its own heading)")
         return self
 
 
@@ -365,7 +373,7 @@ class PlanOptionsIn(BaseModel):
     lookahead: float = Field(
         default=0.15, gt=0, le=2.0, description="m ahead of the body where footholds are aimed"
     )
-    max_states: int = Field(default=200, ge=2, le=2000)
+    max_states: int = Field(default=400, ge=2, le=2000)
     limbs: list[Annotated[str, Field(max_length=100)]] = Field(
         default_factory=list,
         max_length=16,

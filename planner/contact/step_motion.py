@@ -469,12 +469,18 @@ def _resample(
 
 
 def _repair(ctx: ContactContext, q: FloatArray, stance: Any, com: FloatArray) -> FloatArray:
-    """Re-solve one keyframe whose stance contacts slipped, with a larger iteration budget."""
+    """Re-solve one keyframe whose stance contacts slipped, with a larger iteration budget;
+    when the COM target (3,) still pulls a contact off (four contacts leave little freedom),
+    the contacts are held alone, the COM staying where the first solve left it."""
     tasks = [*hold_tasks(stance, ctx), ComTask(com), posture_task(ctx)]
-    result = solve_ik(ctx.model, q, tasks, data=ctx.pin_data, max_iterations=100)
-    if hold_error(ctx, result.q, stance) < hold_error(ctx, q, stance):
-        return np.array(result.q)
-    return q
+    best = q
+    for attempt in (tasks, [*hold_tasks(stance, ctx), posture_task(ctx)]):
+        result = solve_ik(ctx.model, best, attempt, data=ctx.pin_data, max_iterations=100)
+        if hold_error(ctx, result.q, stance) < hold_error(ctx, best, stance):
+            best = np.array(result.q)
+        if hold_error(ctx, best, stance) <= _REPAIR_TOL:
+            break
+    return best
 
 
 def _positions(arc: Callable[[float], FloatArray]) -> Callable[[float], FloatArray]:

@@ -27,6 +27,15 @@ STAIRS_WIDTH = 1.0
 STAIRS_START_X = 1.0
 HANDRAIL_HEIGHT = 0.75
 HANDRAIL_WIDTH = 0.12
+CLIMB_START_X = 1.0
+CLIMB_DEPTH = 0.3  # m, depth of a row of the climbing wall
+CLIMB_RISE = 0.2  # m per row
+CLIMB_JITTER = 0.05  # m, every other foot block this much higher
+CLIMB_ROWS = 7  # the last is the top ledge
+CLIMB_LEDGE = 1.2  # m, depth of the top ledge
+CLIMB_LANE = 0.9  # m, width of the lane the feet climb
+CLIMB_TOWER = 0.15  # m, width of the hand-hold towers either side of the lane
+CLIMB_HOLD_HEIGHT = 0.7  # m, hand holds above the lane's row
 
 TWISTER_ROWS = 6
 TWISTER_COLUMNS = 4
@@ -260,25 +269,27 @@ def chair_mesh() -> trimesh.Trimesh:
 
 
 def climbing_wall_mesh() -> trimesh.Trimesh:
-    """A 3 x 3 m wall (front face at x = 1) with cubic holds in a staggered grid up to 2.5 m."""
-    parts = [_ground(size=(8.0, 8.0)), _box((1.0, -1.5, 0.0), (1.3, 1.5, 3.0), skip=("-z",))]
-    sizes = (0.2, 0.25, 0.3)
-    for row in range(6):
-        z_center = 0.35 + 0.4 * row
-        stagger = 0.2 if row % 2 else 0.0
-        for column in range(7):
-            y_center = -1.2 + 0.4 * column + stagger
-            if abs(y_center) > 1.3:
-                continue
-            size = sizes[(row + column) % 3]
-            half = size / 2.0
-            parts.append(
-                _box(
-                    (1.0 - size, y_center - half, z_center - half),
-                    (1.0, y_center + half, z_center + half),
-                    skip=("+x",),
-                )
-            )
+    """A wall of blocks climbed with hands and feet, from the ground at x < 1 to a top ledge.
+
+    The feet climb a lane of blocks 0.3 m deep rising 0.2 m a row (a 34 degree wall), its
+    left and right halves 0.05 m higher in turn, so the two feet never stand level. On both
+    sides of the lane, towers of 0.15 m blocks stand 0.7 m above the lane's rows: hand holds
+    at the height of a hanging hand. Every block rests on the ground; the top row is a 1.2 m
+    deep ledge.
+    """
+    parts = [_ground(size=(10.0, 8.0))]
+    rows, depth, rise = CLIMB_ROWS, CLIMB_DEPTH, CLIMB_RISE
+    half, tower = CLIMB_LANE / 2.0, CLIMB_TOWER
+    for row in range(rows):
+        x0 = CLIMB_START_X + row * depth
+        x1 = x0 + (CLIMB_LEDGE if row == rows - 1 else depth)
+        top = rise * (row + 1)
+        last = row == rows - 1
+        for side, (y0, y1) in enumerate(((-half, 0.0), (0.0, half))):
+            lift = 0.0 if last or (row + side) % 2 else CLIMB_JITTER
+            parts.append(_box((x0, y0, 0.0), (x1, y1, top + lift), skip=("-z",)))
+        for y0, y1 in ((-half - tower, -half), (half, half + tower)):
+            parts.append(_box((x0, y0, 0.0), (x1, y1, top + CLIMB_HOLD_HEIGHT), skip=("-z",)))
     return _merge(parts)
 
 
@@ -383,7 +394,7 @@ BUILTIN_MESHES: dict[str, tuple[str, Callable[[], trimesh.Trimesh]]] = {
     "flat": ("Flat ground", flat_mesh),
     "stairs": ("Stairs with a handrail", stairs_mesh),
     "chair": ("Chair and table", chair_mesh),
-    "climbing_wall": ("Climbing wall of cubic holds", climbing_wall_mesh),
+    "climbing_wall": ("Climbing wall of blocks", climbing_wall_mesh),
     "twister": ("Twister mat", twister_mesh),
     "rubble": ("Rubble and stepping stones", rubble_mesh),
     "gaps": ("Platforms with gaps", gaps_mesh),

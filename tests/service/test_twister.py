@@ -34,6 +34,38 @@ async def test_break_then_create_chains_states(client: httpx.AsyncClient) -> Non
     assert len(_limbs(second["state"]) ^ _limbs(first["state"])) == 1
 
 
+async def test_humanoid_sits_on_the_chair_and_stands_up(client: httpx.AsyncClient) -> None:
+    """The chair scenario over HTTP: stand facing away from the seat, sit on both sit bones,
+    get up again; every answer chains from the previous state."""
+    chair = {"character": "humanoid", "scene": "chair"}
+    first = await _step(
+        client,
+        **chair,
+        stand_at=[0.15, 0.0, 0.0],
+        yaw=3.141592653589793,
+        action={"kind": "create", "limb": "left_seat", "target": [0.3, -0.09, 0.45]},
+    )
+    assert first["status"] == "SOLVED", first["failure"]
+    sat = await _step(
+        client,
+        **chair,
+        state=first["state"],
+        action={"kind": "create", "limb": "right_seat", "target": [0.3, 0.09, 0.45]},
+    )
+    assert sat["status"] == "SOLVED", sat["failure"]
+    assert {"left_seat", "right_seat"} <= _limbs(sat["state"])
+    seat_heights = [
+        p[2] for c in sat["state"]["contacts"] if c["limb"].endswith("seat") for p in c["points"]
+    ]
+    assert seat_heights == pytest.approx([0.45] * len(seat_heights), abs=5e-3)
+    state = sat["state"]
+    for limb in ("right_seat", "left_seat"):
+        up = await _step(client, **chair, state=state, action={"kind": "break", "limb": limb})
+        assert up["status"] == "SOLVED", up["failure"]
+        state = up["state"]
+    assert _limbs(state) == {"left_foot", "right_foot"}
+
+
 async def test_impossible_move_is_a_structured_failure(client: httpx.AsyncClient) -> None:
     detail = (await client.get("/v1/characters/quadruped")).json()
     limb = detail["limbs"][0]["name"]
@@ -57,6 +89,7 @@ async def test_same_seed_same_step(client: httpx.AsyncClient) -> None:
         ({"action": {"kind": "create"}, "stand_at": [0, 0, 0]}, 422, "action"),
         ({"action": {"kind": "dance", "limb": "x"}, "stand_at": [0, 0, 0]}, 422, "action.kind"),
         ({"action": {"kind": "auto"}}, 422, "body"),
+        ({"action": {"kind": "auto"}, "stand_at": [0, 0, 0], "yaw": 9.0}, 422, "yaw"),
         ({"action": {"kind": "break", "limb": "tail"}, "stand_at": [0, 0, 0]}, 422, "action.limb"),
         (
             {"action": {"kind": "auto"}, "stand_at": [0, 0, 0], "time_budget_s": 100},

@@ -139,10 +139,22 @@ def test_builtin_scene_contents(builtin_scenes) -> None:
     assert 0.45 in heights and 0.75 in heights
 
     wall = builtin_scenes["climbing_wall"]
-    holds = [s for s in wall.surfaces_of(SurfaceKind.SUPPORT) if 0.1 < s.centroid[2] < 2.6]
-    assert len(holds) >= 30
-    assert max(s.centroid[2] for s in holds) == pytest.approx(2.5)
-    assert len(wall.surfaces_of(SurfaceKind.LEAN)) > len(holds)
+    supports = wall.surfaces_of(SurfaceKind.SUPPORT)
+    half_lane = b.CLIMB_LANE / 2.0
+    lane = [s for s in supports if s.centroid[2] > 0.1 and abs(s.centroid[1]) < half_lane]
+    towers = [s for s in supports if abs(s.centroid[1]) > half_lane]
+    assert len(lane) == 2 * (b.CLIMB_ROWS - 1) + 1  # two foot holds a row, then the ledge
+    assert len(towers) == 2 * b.CLIMB_ROWS
+    for row in range(b.CLIMB_ROWS - 1):
+        x = b.CLIMB_START_X + (row + 0.5) * b.CLIMB_DEPTH
+        here = sorted(s.centroid[2] for s in lane if abs(s.centroid[0] - x) < 1e-6)
+        assert here[1] - here[0] == pytest.approx(b.CLIMB_JITTER)  # the feet never level
+        assert here[0] == pytest.approx(b.CLIMB_RISE * (row + 1))
+        hands = [s.centroid[2] for s in towers if abs(s.centroid[0] - x) < 1e-6]
+        assert hands == pytest.approx([here[0] + b.CLIMB_HOLD_HEIGHT] * 2)
+    ledge = max(lane, key=lambda s: s.centroid[2])
+    assert ledge.centroid[2] == pytest.approx(b.CLIMB_ROWS * b.CLIMB_RISE)
+    assert wall.surfaces_of(SurfaceKind.LEAN)  # the risers and the towers' sides
 
     rubble = builtin_scenes["rubble"]
     tilted = [s for s in rubble.surfaces_of(SurfaceKind.SUPPORT) if s.normal[2] < 0.99]
