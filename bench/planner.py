@@ -22,20 +22,16 @@ sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != ROOT / "bench"
 sys.path.insert(0, str(ROOT))
 
 from planner.character import get_character  # noqa: E402
-from planner.contact.planner import Endpoint, plan_contact_motion  # noqa: E402
+from planner.contact.planner import plan_contact_motion  # noqa: E402
 from planner.offline import load_offline_data  # noqa: E402
 from tests.paths import gecko_cache_dir  # noqa: E402
-from tests.scenarios.plans.test_plans import scenario_options, scenario_scene  # noqa: E402
+from tests.scenarios.plans.test_plans import (  # noqa: E402
+    scenario_endpoint,
+    scenario_options,
+    scenario_scene,
+)
 
 SCENARIOS = ROOT / "tests" / "scenarios" / "plans"
-
-
-def _endpoint(spec: dict[str, list[float]]) -> Endpoint:
-    if "stand_at" in spec:
-        return Endpoint(stand_at=np.asarray(spec["stand_at"], dtype=np.float64))
-    pose = np.eye(4)
-    pose[:3, 3] = spec["position"]
-    return Endpoint(root_pose=pose)
 
 
 def _p90(values: list[float]) -> float:
@@ -71,8 +67,8 @@ def main() -> None:
                 scene,
                 character,
                 data,
-                _endpoint(spec["start"]),
-                _endpoint(spec["goal"]),
+                scenario_endpoint(spec["start"]),
+                scenario_endpoint(spec["goal"]),
                 rng=np.random.default_rng(seed),
                 time_budget_s=float(spec["time_budget_s"]),
                 options=scenario_options(spec),
@@ -94,23 +90,13 @@ def main() -> None:
 
 def unreachable_goal(seeds: int) -> None:
     """Answer time of a 1 s plan to a goal inside the closed pen (target: within 1.5 s)."""
-    from planner.scene import load_builtin_scene
+    from tests.planner.contact.contact_helpers import character_and_data, plan_into_the_pen, scene
 
-    character = get_character("humanoid")
-    data = load_offline_data(character, gecko_cache_dir())
-    pen = load_builtin_scene("pen")
+    character_and_data("humanoid"), scene("pen")  # loaded before the clock starts
     times, statuses = [], set()
     for seed in range(seeds):
         start = time.perf_counter()
-        result = plan_contact_motion(
-            pen,
-            character,
-            data,
-            Endpoint(stand_at=np.array([0.0, 0.0, 0.0])),
-            Endpoint(stand_at=np.array([3.0, 0.0, 0.0])),
-            rng=np.random.default_rng(seed),
-            time_budget_s=1.0,
-        )
+        result = plan_into_the_pen(seed)
         times.append(time.perf_counter() - start)
         statuses.add(result.status.value)
     print(

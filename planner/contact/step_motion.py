@@ -62,7 +62,6 @@ _ACC_MANY = 0.2  # m/s^2, peak COM acceleration over the larger contact set (bre
 _SETTLE = 0.1  # s, the short phase without swing
 _N_CHECKS = 5  # dynamic checks per phase
 _STRIDE = 5  # outside the swing, IK every _STRIDE keyframes, interpolated in between
-_FULL_CHECK_STRIDE = 1  # whole-body collision check every this many keyframes
 _REPAIR_TOL = 2e-3  # m, keyframes whose stance slips more are re-solved
 _TRANSITION_SHIFTS = (0.03, 0.06)  # m, moves of the transition point off an obstacle
 _BLEND = 0.3  # s, a re-sampled free limb's posture is blended in and out over this
@@ -143,14 +142,8 @@ def _repose_free_limbs(ctx: ContactContext, motion: StepMotion, limb: str) -> St
     ramp = np.clip(ramp, 0.0, 1.0)
     stances = [_stance_of(motion, k) for k in keys]
 
-    def hits(qs: list[FloatArray]) -> int:
-        return sum(
-            int(self_collides(ctx, q) or bool(scene_collisions(ctx, q, contacts=stance)))
-            for q, stance in zip(qs[1:-1], stances[1:-1], strict=True)
-        )
-
     base = [np.array(k.q) for k in keys]
-    best, best_hits = base, hits(base)
+    best, best_hits = base, _colliding(ctx, base, stances)
     sizes = [len(ctx.data.limb(x.name).database.q) for x in free]
     for rank in _REPOSE_RANKS:
         trial = [q.copy() for q in base]
@@ -158,7 +151,7 @@ def _repose_free_limbs(ctx: ContactContext, motion: StepMotion, limb: str) -> St
             posture = ctx.data.limb(spec.name).database.q[min(rank, size - 1)]
             for q, w in zip(trial, ramp, strict=True):
                 q[spec.idx_q] = (1.0 - w) * q[spec.idx_q] + w * posture
-        count = hits(trial)
+        count = _colliding(ctx, trial, stances)
         if count < best_hits:
             best, best_hits = trial, count
         if best_hits == 0:
@@ -309,15 +302,6 @@ def _motion(
     start_pose = effector_pose(ctx, limb, before.q)
     end_pose = effector_pose(ctx, limb, after.q)
     swing_phase = 0 if creating else 1
-    # checked at every keyframe: the swing limb and the limbs hanging free throughout
-    loose = [
-        x.name
-        for x in ctx.character.default_limbs
-        if x.name != limb and before.contact(x.name) is None and after.contact(x.name) is None
-    ]
-    spec_geoms = np.unique(
-        np.concatenate([limb_geometries(ctx, x) for x in (limb, *loose)])
-    ).astype(np.int64)
     stances = (before.contacts, after.contacts)
     # legs neither in contact nor swinging stay where they hang (a foot lifted earlier does
     # not sink into the floor while the body shifts over the others)
@@ -389,7 +373,7 @@ def _motion(
                 if hold_error(ctx, qs[i], stance) > 2e-4:  # the blend let go a little
                     qs[i] = _repair(ctx, qs[i], stance, com_at(ts[i]))
         held = tuple(c for c in before.contacts if c.limb in after.limbs)
-        hits = _colliding(ctx, qs, spec_geoms, held)
+        hits = _colliding(ctx, qs, [held] * len(qs))
         if best is None or hits < best[3]:
             best = (qs, ts, worst_hold, hits, lift)
         if hits == 0:
@@ -429,27 +413,15 @@ def _motion(
     return StepMotion(phases, com, keyframes, report, after)
 
 
-def limb_geometries(ctx: ContactContext, limb: str) -> NDArray[np.int64]:
-    """Indices of the collision geometries carried by ``limb``'s joints."""
-    joints = set(ctx.character.limb(limb).joint_ids.tolist())
-    geoms = ctx.character.geometry.geometryObjects
-    return np.array(
-        [i for i, g in enumerate(geoms) if int(g.parentJoint) in joints], dtype=np.int64
-    )
-
-
 def _colliding(
-    ctx: ContactContext, qs: list[FloatArray], swing: NDArray[np.int64], stance: Sequence[Any]
+    ctx: ContactContext, qs: Sequence[FloatArray], stances: Sequence[Sequence[Any]]
 ) -> int:
-    """Interior keyframes with a collision: self-collision and the swing limb's shapes
-    against the scene at every keyframe, the whole body (the effector shapes of the ``stance``
-    limbs excepted) against the scene every ``_FULL_CHECK_STRIDE`` keyframes."""
-    hits = 0
-    for i, q in enumerate(qs[1:-1], start=1):
-        only = None if i % _FULL_CHECK_STRIDE == 0 else swing
-        hit = scene_collisions(ctx, q, only, contacts=stance)
-        hits += int(self_collides(ctx, q) or bool(hit))
-    return hits
+    """Interior keyframes of ``qs`` where the body touches itself, the scene or an obstacle;
+    ``stances[i]`` are the contacts whose effector shapes rest on their surfaces at ``qs[i]``."""
+    return sum(
+        int(self_collides(ctx, q) or bool(scene_collisions(ctx, q, contacts=stance)))
+        for q, stance in zip(qs[1:-1], stances[1:-1], strict=True)
+    )
 
 
 def _resample(

@@ -8,9 +8,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.character import Character, get_character
+from planner.contact.planner import ContactPlan, Endpoint, plan_contact_motion
 from planner.contact.reachability import ReachabilityChecker
 from planner.offline import OfflineData, load_offline_data
 from planner.poses import pose_matrix, yaw_matrix
+from planner.result import PlanResult
 from planner.scene import Scene, load_builtin_scene
 from planner.shapes import Box, Shape
 from tests.paths import gecko_cache_dir
@@ -68,3 +70,18 @@ def cage(
             )
         )
     return walls
+
+
+def plan_into_the_pen(seed: int, time_budget_s: float = 1.0) -> PlanResult[ContactPlan]:
+    """The humanoid's plan from outside the closed ``pen`` scene to a goal inside its walls,
+    a goal nothing reaches."""
+    character, data = character_and_data("humanoid")
+    return plan_contact_motion(
+        scene("pen"),
+        character,
+        data,
+        Endpoint(stand_at=np.array([0.0, 0.0, 0.0])),
+        Endpoint(stand_at=np.array([3.0, 0.0, 0.0])),
+        rng=np.random.default_rng(seed),
+        time_budget_s=time_budget_s,
+    )

@@ -8,22 +8,12 @@ import numpy as np
 
 from planner.contact.planner import Endpoint, plan_contact_motion
 from planner.result import PlanStatus
-from tests.planner.contact.contact_helpers import character_and_data, scene
+from tests.planner.contact.contact_helpers import character_and_data, plan_into_the_pen, scene
 
 
 def test_unreachable_goal_answers_within_one_and_a_half_seconds() -> None:
-    character, data = character_and_data("humanoid")
-    pen = scene("pen")  # the goal stands inside four 2.5 m walls
     clock = time.monotonic()
-    result = plan_contact_motion(
-        pen,
-        character,
-        data,
-        Endpoint(stand_at=np.array([0.0, 0.0, 0.0])),
-        Endpoint(stand_at=np.array([3.0, 0.0, 0.0])),
-        rng=np.random.default_rng(3),
-        time_budget_s=1.0,
-    )
+    result = plan_into_the_pen(seed=3)  # the goal stands inside four 2.5 m walls
     elapsed = time.monotonic() - clock
     assert result.status in (PlanStatus.TIMEOUT, PlanStatus.INFEASIBLE), result.message
     assert result.value is not None and len(result.value.states) == 1  # the start, kept

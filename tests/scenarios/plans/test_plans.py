@@ -35,7 +35,8 @@ SPECS = {p.stem: json.loads(p.read_text()) for p in sorted(HERE.glob("*.json"))}
 SOLVED = sorted(name for name, spec in SPECS.items() if spec.get("solved", True))
 
 
-def _endpoint(spec: dict[str, list[float]]) -> Endpoint:
+def scenario_endpoint(spec: dict[str, list[float]]) -> Endpoint:
+    """A scenario's ``start`` or ``goal``: ``stand_at`` [x, y, z] or a root ``position``."""
     if "stand_at" in spec:
         return Endpoint(stand_at=np.asarray(spec["stand_at"], dtype=np.float64))
     pose = np.eye(4)
@@ -68,8 +69,8 @@ def _plan(name: str) -> tuple[PlanResult[ContactPlan], Any, Any, Any]:
         scene,
         character,
         data,
-        _endpoint(spec["start"]),
-        _endpoint(spec["goal"]),
+        scenario_endpoint(spec["start"]),
+        scenario_endpoint(spec["goal"]),
         rng=np.random.default_rng(int(spec["seed"])),
         time_budget_s=float(spec["time_budget_s"]),
         options=scenario_options(spec),
