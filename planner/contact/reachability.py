@@ -8,6 +8,7 @@ Workspaces are tested against a BVH of the allowed surface triangles only, never
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from collections.abc import Collection, Mapping, Sequence
 
 import numpy as np
@@ -76,9 +77,30 @@ def _fibonacci_sphere(k: int) -> FloatArray:
     )
 
 
+_SIMPLIFIED: OrderedDict[tuple[int, int], tuple[ConvexPolytope, ConvexPolytope]] = OrderedDict()
+_SIMPLIFIED_KEPT = 64  # workspaces whose simplification is remembered (a few characters' limbs)
+
+
 def simplified_workspace(workspace: ConvexPolytope, directions: int) -> ConvexPolytope:
     """Inner approximation of Wk: the hull of its support points along ``directions`` unit
-    directions spread over the sphere (a subset of its vertices, so it lies inside Wk)."""
+    directions spread over the sphere (a subset of its vertices, so it lies inside Wk).
+
+    Remembered per workspace object: a checker is built for every standing state, and a
+    workspace of points on a sphere (a sit bone turning about the hip) keeps all its 1e5
+    samples as vertices."""
+    key = (id(workspace), directions)
+    known = _SIMPLIFIED.get(key)
+    if known is not None and known[0] is workspace:
+        _SIMPLIFIED.move_to_end(key)
+        return known[1]
+    simplified = _simplify(workspace, directions)
+    _SIMPLIFIED[key] = (workspace, simplified)
+    if len(_SIMPLIFIED) > _SIMPLIFIED_KEPT:
+        _SIMPLIFIED.popitem(last=False)
+    return simplified
+
+
+def _simplify(workspace: ConvexPolytope, directions: int) -> ConvexPolytope:
     if directions <= 0 or directions >= len(workspace.vertices):
         return workspace
     support = np.argmax(workspace.vertices @ _fibonacci_sphere(directions).T, axis=0)
