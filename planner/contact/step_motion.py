@@ -115,10 +115,13 @@ def step_motion(
         motion = _shift_transition(ctx, before, after, limb, rate, motion, normal)
     # free arms swept through the thighs or the seat by a deep crouch: keep them in place;
     # a tracking IK that drifts off the swing (a thigh grazing a seat edge): land on the state
+    tracked: dict[float, tuple[list[FloatArray], list[float], float]] = {}
     for landing in (0.0, _LANDING):
         if motion.report["colliding_keyframes"] == 0:
             break
-        held = _motion(ctx, before, motion.state, limb, rate, hold_arms=True, landing=landing)
+        held = _motion(
+            ctx, before, motion.state, limb, rate, hold_arms=True, landing=landing, tracked=tracked
+        )
         held.report["transition_shift"] = motion.report["transition_shift"]
         if held.report["colliding_keyframes"] < motion.report["colliding_keyframes"]:
             motion = held
@@ -253,10 +256,12 @@ def _motion(
     rate: float,
     hold_arms: bool = False,
     landing: float = 0.0,
+    tracked: dict[float, tuple[list[FloatArray], list[float], float]] | None = None,
 ) -> StepMotion:
     """:func:`step_motion` for a fixed transition point (the COM of ``after``); with
     ``hold_arms``, free arms too keep their world pose instead of following the trunk; the
-    keyframes of the last ``landing`` seconds are blended into ``after``."""
+    keyframes of the last ``landing`` seconds are blended into ``after``. ``tracked`` keeps
+    the tracked keyframes per swing lift across calls that differ only by ``landing``."""
     phase_b, phase_a = phase_of(ctx, before.contacts), phase_of(ctx, after.contacts)
     kin_b, kin_a = kinematics_of(ctx, before.contacts), kinematics_of(ctx, after.contacts)
     c0, c1 = com_of(ctx, before.q), com_of(ctx, after.q)
@@ -317,8 +322,10 @@ def _motion(
         and after.contact(other.name) is None
     ]
     braced = _braced_elbows(ctx, before, after, limb, legs)
-    best: tuple[list[FloatArray], list[float], float, int, float] | None = None
-    for lift in _LIFTS:
+
+    def track(lift: float) -> tuple[list[FloatArray], list[float], float]:
+        """Keyframes (configurations, times) tracking the COM with a swing arc raised
+        ``lift`` m, and the worst stance hold error [m] among them."""
         qs: list[FloatArray] = []
         ts: list[float] = []
         q = np.array(before.q)
@@ -367,6 +374,16 @@ def _motion(
             q = np.array(configs[-1])
         qs[0] = np.array(before.q)
         qs[-1] = np.array(after.q)
+        return qs, ts, worst_hold
+
+    best: tuple[list[FloatArray], list[float], float, int, float] | None = None
+    for lift in _LIFTS:
+        raw = tracked.get(lift) if tracked is not None else None
+        if raw is None:
+            raw = track(lift)
+            if tracked is not None:
+                tracked[lift] = raw
+        qs, ts, worst_hold = [np.array(q) for q in raw[0]], list(raw[1]), raw[2]
         if landing > 0.0:
             for i in _land(ctx.model, qs, ts, after.q, landing):
                 stance = _stance_at(ts[i], times, stances)
