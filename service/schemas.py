@@ -373,7 +373,7 @@ class PlanOptionsIn(BaseModel):
     lookahead: float = Field(
         default=0.15, gt=0, le=2.0, description="m ahead of the body where footholds are aimed"
     )
-    max_states: int = Field(default=400, ge=2, le=2000)
+    max_states: int = Field(default=200, ge=2, le=2000)
     limbs: list[Annotated[str, Field(max_length=100)]] = Field(
         default_factory=list,
         max_length=16,

@@ -81,7 +81,7 @@ class SequenceParams:
     advance: float = 0.1
     min_step: float = 0.05
     goal_tolerance: float = 0.03
-    max_states: int = 400
+    max_states: int = 200
     max_stuck: int = 3
     jitter: float = 0.05
 

@@ -22,6 +22,7 @@ from planner.character import get_character
 from planner.contact.checks import check_state, contact_on_surface, hold_error, within_limits
 from planner.contact.context import make_context
 from planner.contact.planner import ContactPlan, Endpoint, PlanOptions, plan_contact_motion
+from planner.contact.sequence import SequenceParams
 from planner.contact.sequence_motion import phase_kinematics
 from planner.contact.state import ContactState
 from planner.offline import load_offline_data
@@ -53,9 +54,13 @@ def scenario_scene(spec: dict[str, Any]) -> Scene | None:
 
 
 def scenario_options(spec: dict[str, Any]) -> PlanOptions:
-    """The plan options of a scenario (``"options": {"limbs": [...]}``; defaults otherwise)."""
+    """The plan options of a scenario (``"options": {"limbs": [...], "max_states": n}``, the
+    service's names; defaults otherwise)."""
     options = spec.get("options", {})
-    return PlanOptions(limbs=tuple(options.get("limbs", ())))
+    sequence = SequenceParams(
+        max_states=int(options.get("max_states", SequenceParams().max_states))
+    )
+    return PlanOptions(limbs=tuple(options.get("limbs", ())), sequence=sequence)
 
 
 def _plan(name: str) -> tuple[PlanResult[ContactPlan], Any, Any, Any]:
