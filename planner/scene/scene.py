@@ -70,26 +70,41 @@ class Scene:
         crosses the mesh an odd number of times (distinct heights, so a ray through an edge
         shared by two triangles counts once). Ground running on under a staircase, or under
         a block whose bottom face was left out, is inside; ground under a table is not."""
-        px, py, pz = (float(c) for c in np.asarray(point, dtype=np.float64).reshape(3))
-        lo, hi, tri = _vertical_ray_data(self)
-        near = (lo[:, 0] <= px) & (px <= hi[:, 0]) & (lo[:, 1] <= py) & (py <= hi[:, 1])
-        near &= hi[:, 2] > pz
-        if not np.any(near):
-            return False
-        t = tri[near]  # (k, 3, 3)
-        a, b, c = t[:, 0], t[:, 1], t[:, 2]
-        v0, v1 = b[:, :2] - a[:, :2], c[:, :2] - a[:, :2]
-        v2 = np.array([px, py]) - a[:, :2]
-        den = v0[:, 0] * v1[:, 1] - v1[:, 0] * v0[:, 1]
-        flat = np.abs(den) > 1e-12  # a vertical triangle is grazed, not crossed
-        den = np.where(flat, den, 1.0)
-        wb = (v2[:, 0] * v1[:, 1] - v1[:, 0] * v2[:, 1]) / den
-        wc = (v0[:, 0] * v2[:, 1] - v2[:, 0] * v0[:, 1]) / den
-        wa = 1.0 - wb - wc
-        hit = flat & (wa >= -1e-12) & (wb >= -1e-12) & (wc >= -1e-12)
-        heights = wa * a[:, 2] + wb * b[:, 2] + wc * c[:, 2]
-        above = np.unique(np.round(heights[hit & (heights > pz + 1e-9)], 6))
+        pz = float(np.asarray(point, dtype=np.float64).reshape(3)[2])
+        heights = _vertical_crossings(self, point)
+        above = np.unique(np.round(heights[heights > pz + 1e-9], 6))
         return len(above) % 2 == 1
+
+    def height_below(self, point: FloatArray) -> float | None:
+        """Height (m, world z) of the highest mesh point straight below ``point`` (3,): the
+        top of whatever a body at ``point`` would stand on; None when nothing is below."""
+        pz = float(np.asarray(point, dtype=np.float64).reshape(3)[2])
+        heights = _vertical_crossings(self, point)
+        heights = heights[heights <= pz + 1e-9]
+        return float(heights.max()) if len(heights) else None
+
+
+def _vertical_crossings(scene: Scene, point: FloatArray) -> FloatArray:
+    """Heights (k,) where the vertical line through ``point`` (3,) crosses a face of
+    ``scene`` (vertical faces are grazed, not crossed)."""
+    px, py = (float(c) for c in np.asarray(point, dtype=np.float64).reshape(3)[:2])
+    lo, hi, tri = _vertical_ray_data(scene)
+    near = (lo[:, 0] <= px) & (px <= hi[:, 0]) & (lo[:, 1] <= py) & (py <= hi[:, 1])
+    if not np.any(near):
+        return np.zeros(0)
+    t = tri[near]  # (k, 3, 3)
+    a, b, c = t[:, 0], t[:, 1], t[:, 2]
+    v0, v1 = b[:, :2] - a[:, :2], c[:, :2] - a[:, :2]
+    v2 = np.array([px, py]) - a[:, :2]
+    den = v0[:, 0] * v1[:, 1] - v1[:, 0] * v0[:, 1]
+    flat = np.abs(den) > 1e-12
+    den = np.where(flat, den, 1.0)
+    wb = (v2[:, 0] * v1[:, 1] - v1[:, 0] * v2[:, 1]) / den
+    wc = (v0[:, 0] * v2[:, 1] - v2[:, 0] * v0[:, 1]) / den
+    wa = 1.0 - wb - wc
+    hit = flat & (wa >= -1e-12) & (wb >= -1e-12) & (wc >= -1e-12)
+    heights = wa * a[:, 2] + wb * b[:, 2] + wc * c[:, 2]
+    return np.asarray(heights[hit], dtype=np.float64)
 
 
 _RAY_DATA: dict[int, tuple[Scene, FloatArray, FloatArray, FloatArray]] = {}

@@ -218,3 +218,24 @@ def test_inside_solid_matches_the_box(x: float, y: float, z: float) -> None:
         assert got
     elif outside:
         assert not got
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    x=st.floats(-1.9, 1.9),
+    y=st.floats(-1.9, 1.9),
+    z=st.floats(0.41, 2.0),
+)
+def test_height_below_is_the_top_underneath(x: float, y: float, z: float) -> None:
+    """Above the block (top 0.4) the ground under a point is the block's top; beside it,
+    the slab's top (0); beyond the slab, nothing."""
+    margin = 1e-3
+    on_block = abs(x - 0.3) < 0.5 - margin and abs(y + 0.2) < 0.3 - margin
+    beside = abs(x - 0.3) > 0.5 + margin or abs(y + 0.2) > 0.3 + margin
+    got = _BOX_SCENE.height_below(np.array([x, y, z]))
+    if on_block:
+        assert got == pytest.approx(0.4, abs=1e-9)
+    elif beside:
+        assert got == pytest.approx(0.0, abs=1e-9)
+    assert _BOX_SCENE.height_below(np.array([x + 10.0, y, z])) is None
+    assert _BOX_SCENE.height_below(np.array([x, y, -0.5])) is None  # under the slab
