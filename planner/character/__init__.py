@@ -9,9 +9,17 @@ from planner.character.model import (
     load_character,
     real_robot_ids,
 )
-from planner.character.spec import CharacterSpec, LimbSpec, SpecError, parse_spec, read_spec
+from planner.character.spec import (
+    MAX_PITCH,
+    CharacterSpec,
+    LimbSpec,
+    SpecError,
+    parse_spec,
+    read_spec,
+)
 
 __all__ = [
+    "MAX_PITCH",
     "Character",
     "CharacterSpec",
     "Limb",

@@ -117,6 +117,12 @@ class Character:
         return np.asarray(self.q_ref[7:], dtype=np.float64)
 
     @property
+    def max_pitch(self) -> float:
+        """How far (rad) the trunk may pitch while walking: about 0 for an upright humanoid;
+        a multi-legged body climbing steps lies along them (spec ``max_pitch``)."""
+        return float(self.spec.max_pitch)
+
+    @property
     def default_limbs(self) -> tuple[Limb, ...]:
         """The limbs used unless asked otherwise: all but the ``on_request`` ones (the back of
         the thighs for sitting), which the Twister game and jumps leave alone."""

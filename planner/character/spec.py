@@ -18,6 +18,9 @@ CONTACT_KINDS = ("point", "patch")
 SELF_COLLISION_MODES = ("urdf", "capsules")
 
 
+MAX_PITCH = 0.8  # rad, the largest trunk pitch a spec may allow
+
+
 class SpecError(ValueError):
     """Invalid limb spec; ``field`` names the offending field (dotted path)."""
 
@@ -67,6 +70,7 @@ class CharacterSpec:
     limbs: tuple[LimbSpec, ...]
     self_collision_mode: str
     self_collision_radius: float
+    max_pitch: float = 0.05
 
 
 def _require(mapping: dict[str, Any], key: str, where: str) -> Any:
@@ -205,7 +209,10 @@ def parse_spec(data: Any) -> CharacterSpec:
     if mode not in SELF_COLLISION_MODES:
         raise SpecError("self_collision.mode", f"expected 'urdf' or 'capsules', got {mode!r}")
     radius = _num(sc.get("radius", 0.04), "self_collision.radius", positive=True)
-    return CharacterSpec(cid, urdf, trunk, height, posture, limbs, mode, radius)
+    max_pitch = _num(doc.get("max_pitch", 0.05), "max_pitch", nonneg=True)
+    if max_pitch > MAX_PITCH:
+        raise SpecError("max_pitch", f"must be at most {MAX_PITCH} rad, got {max_pitch}")
+    return CharacterSpec(cid, urdf, trunk, height, posture, limbs, mode, radius, max_pitch)
 
 
 def read_spec(path: str | Path) -> tuple[CharacterSpec, str]:

@@ -307,13 +307,15 @@ def hexapod() -> _Robot:
     """A ~5 kg hexapod: six legs coxa (yaw), femur (pitch), tibia (pitch); x out of the leg."""
     r = _Robot("hexapod")
     r.link("base", 3.0, Geom("box", (0.5, 0.24, 0.08)))
+    # (leg, mount x, mount y, coxa yaw away from straight out): the front legs splay
+    # forward and the rear legs backward, so the feet span about 0.64 m along the body
     mounts = (
-        ("l1", 0.2, 0.12, 0.5),
+        ("l1", 0.2, 0.12, -0.5),
         ("l2", 0.0, 0.14, 0.0),
-        ("l3", -0.2, 0.12, -0.5),
-        ("r1", 0.2, -0.12, -0.5),
+        ("l3", -0.2, 0.12, 0.5),
+        ("r1", 0.2, -0.12, 0.5),
         ("r2", 0.0, -0.14, 0.0),
-        ("r3", -0.2, -0.12, 0.5),
+        ("r3", -0.2, -0.12, -0.5),
     )
     for leg, x, y, splay in mounts:
         yaw = (math.pi / 2 if y > 0 else -math.pi / 2) + splay

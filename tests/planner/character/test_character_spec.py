@@ -23,6 +23,7 @@ def test_builtin_specs_parse() -> None:
     assert spec.id == "quadruped"
     assert len(spec.limbs) == 4
     assert spec.limbs[0].contact == "point"
+    assert spec.max_pitch == pytest.approx(0.05)  # level unless the spec says otherwise
 
 
 @pytest.mark.parametrize(
@@ -51,6 +52,8 @@ def test_builtin_specs_parse() -> None:
         ),
         (lambda d: d.__setitem__("self_collision", {"mode": "voxels"}), "self_collision.mode"),
         (lambda d: d.__setitem__("root_height", 0), "root_height"),
+        (lambda d: d.__setitem__("max_pitch", 1.2), "max_pitch"),
+        (lambda d: d.__setitem__("max_pitch", -0.1), "max_pitch"),
     ],
 )
 def test_parse_errors_name_the_field(edit: Any, field: str) -> None:
