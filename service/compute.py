@@ -96,6 +96,7 @@ def run_plan(request_json: str, seed: int) -> dict[str, Any]:
             lookahead=request.options.lookahead, max_states=request.options.max_states
         ),
         contact=ContactParams(margin=request.options.margin),
+        max_pitch=request.options.max_pitch,
     )
     result = plan_contact_motion(
         scene,

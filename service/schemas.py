@@ -363,6 +363,9 @@ class JumpResponse(BaseModel):
     timings: dict[str, float]
 
 
+MAX_PITCH = 0.8  # rad, planner.character.MAX_PITCH (clients import this module, not planner)
+
+
 class PlanOptionsIn(BaseModel):
     """Tuning of a contact plan; every field has a bound."""
 
@@ -374,6 +377,13 @@ class PlanOptionsIn(BaseModel):
         default=0.15, gt=0, le=2.0, description="m ahead of the body where footholds are aimed"
     )
     max_states: int = Field(default=200, ge=2, le=2000)
+    max_pitch: float | None = Field(
+        default=None,
+        ge=0,
+        le=MAX_PITCH,
+        description="rad the trunk may pitch (default: the character's; a hexapod climbing "
+        "steps lies along them)",
+    )
     limbs: list[Annotated[str, Field(max_length=100)]] = Field(
         default_factory=list,
         max_length=16,

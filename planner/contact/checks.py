@@ -112,15 +112,18 @@ def kinematics_of(ctx: ContactContext, contacts: Sequence[LimbContact]) -> Halfs
     return out
 
 
-def shrunk_equilibrium(ctx: ContactContext, contacts: Sequence[LimbContact]) -> Halfspaces:
-    """The static-equilibrium prism of ``contacts`` shrunk by ``params.com_shrink`` (memoised)."""
+def shrunk_equilibrium(
+    ctx: ContactContext, contacts: Sequence[LimbContact], depth: float = 1.0
+) -> Halfspaces:
+    """The static-equilibrium prism of ``contacts`` shrunk by ``depth`` times
+    ``params.com_shrink`` (memoised)."""
 
     def make() -> Halfspaces:
         eq = equilibrium_halfspaces(phase_of(ctx, contacts))
         norms = np.linalg.norm(eq.A, axis=1)
-        return Halfspaces(eq.A, eq.b - ctx.params.com_shrink * norms)
+        return Halfspaces(eq.A, eq.b - depth * ctx.params.com_shrink * norms)
 
-    out: Halfspaces = ctx.cached(("shrunk", contacts_key(contacts)), make)
+    out: Halfspaces = ctx.cached(("shrunk", depth, contacts_key(contacts)), make)
     return out
 
 

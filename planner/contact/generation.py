@@ -106,11 +106,19 @@ def _fail(
     return ContactAttempt(False, state, reason, tried, message, limb)
 
 
-def posture_task(ctx: ContactContext, gain: float = 0.3) -> PostureTask:
-    """Pull toward the character's reference posture, root free."""
+def posture_task(
+    ctx: ContactContext, gain: float = 0.3, root_from: FloatArray | None = None
+) -> PostureTask:
+    """Pull toward the character's reference posture, root free; with ``root_from`` (nq,),
+    the root's orientation is also pulled toward that configuration's (a trunk that keeps
+    its pitch on a slope)."""
     weights = np.ones(ctx.model.nv)
     weights[:6] = 0.0
-    return PostureTask(ctx.character.q_ref, weights, gain=gain)
+    target = np.array(ctx.character.q_ref)
+    if root_from is not None:
+        target[3:7] = root_from[3:7]
+        weights[3:6] = 1.0
+    return PostureTask(target, weights, gain=gain)
 
 
 def hold_tasks(contacts: Sequence[LimbContact], ctx: ContactContext) -> list[TargetTask]:
@@ -134,10 +142,12 @@ def balance_ik(
     extra: Sequence[Task] = (),
     axes: tuple[bool, bool, bool] = (True, True, True),
     moving: Sequence[str] = (),
+    keep_orientation: bool = False,
 ) -> IkResult:
-    """Whole-body IK: hold ``contacts``, COM to ``com`` (3,), then ``extra`` and the posture."""
+    """Whole-body IK: hold ``contacts``, COM to ``com`` (3,), then ``extra`` and the posture
+    (with ``keep_orientation``, the root's orientation in ``q`` is part of it)."""
     tasks: list[Task] = [*hold_tasks(contacts, ctx), ComTask(com, axes), *extra]
-    tasks.append(posture_task(ctx))
+    tasks.append(posture_task(ctx, root_from=np.asarray(q) if keep_orientation else None))
     return solve_ik(
         ctx.model,
         q,
@@ -630,6 +640,57 @@ def _lift_offsets(lift: float, normal: FloatArray) -> list[FloatArray]:
     return out
 
 
+_SHIFT_DEPTHS = (1.0, 2.0, 4.0)  # times ``com_shrink``: deeper transition points tried
+# (m the shifted COM is raised, root orientation kept) tried while the shifted body collides
+_SHIFT_TRIES = ((0.0, False), (0.0, True), (0.03, True), (0.06, True))
+
+
+def _shift_com(
+    ctx: ContactContext, state: ContactState, after: tuple[LimbContact, ...]
+) -> tuple[FloatArray, FloatArray] | ContactAttempt:
+    """The posture (nq,) and COM (3,) of ``state`` with its COM moved over the contacts
+    ``after`` with the margin, holding ``state``'s contacts (2PAC: a point of
+    equilibrium(after) inside kinematics(before) and kinematics(after)); a failed attempt
+    when none is found. The equilibrium prism is shrunk deeper in turn when the margin is
+    missed (the prism's shrink is in metres, the margin in newtons: a light body on
+    uneven footholds needs more than the default)."""
+    limb = next(c.limb for c in state.contacts if c not in after)
+    com = com_of(ctx, state.q)
+    kin_before = kinematics_of(ctx, state.contacts)
+    kin_after = kinematics_of(ctx, after)
+    failure = _fail(state, FailureReason.NOT_BALANCED, limb, "no balanced COM reachable")
+    for depth in _SHIFT_DEPTHS:
+        tp = transition_point(
+            shrunk_equilibrium(ctx, after, depth),
+            Halfspaces(np.zeros((0, 3)), np.zeros(0)),  # equilibrium(before) contains it
+            com,
+            kin_prev=kin_before,
+            kin_next=kin_after,
+        )
+        if not tp.feasible:
+            return failure
+        for rise, keep in _SHIFT_TRIES:
+            # equilibrium is a vertical prism: a higher COM keeps it and may lift the
+            # trunk off a step's nosing; so may keeping the trunk's pitch
+            point = tp.point + np.array([0.0, 0.0, rise])
+            if rise > 0.0 and kin_before.violation(point) > 1e-3:
+                continue
+            res = balance_ik(ctx, np.array(state.q), state.contacts, point, keep_orientation=keep)
+            q1 = np.array(res.q)
+            if not _holds(ctx, q1, state.contacts):
+                return _fail(state, FailureReason.NOT_BALANCED, limb, "COM shift not reachable", 1)
+            if collision_free(ctx, q1, state.contacts):
+                break
+        com1 = com_of(ctx, q1)
+        margin = balance_margin(ctx, after, com1)
+        if margin >= ctx.params.margin:
+            return q1, com1
+        failure = _fail(
+            state, FailureReason.NOT_BALANCED, limb, f"COM shift not balanced: {margin:.3g} N", 1
+        )
+    return failure
+
+
 def break_contact(ctx: ContactContext, state: ContactState, limb: str) -> ContactAttempt:
     """Release ``limb``: shift the COM over the remaining contacts (2PAC: a point of
     equilibrium(after) inside kinematics(before)), then lift the effector by ``params.lift``."""
@@ -641,28 +702,11 @@ def break_contact(ctx: ContactContext, state: ContactState, limb: str) -> Contac
     after = tuple(c for c in state.contacts if c.limb != limb)
     if not after:
         return _fail(state, FailureReason.NOT_BALANCED, limb, "no contact would remain")
-    com = com_of(ctx, state.q)
+    shifted = _shift_com(ctx, state, after)
+    if isinstance(shifted, ContactAttempt):
+        return shifted
+    q1, com1 = shifted
     kin_before = kinematics_of(ctx, state.contacts)
-    kin_after = kinematics_of(ctx, after)
-    tp = transition_point(
-        shrunk_equilibrium(ctx, after),
-        Halfspaces(np.zeros((0, 3)), np.zeros(0)),  # equilibrium(before) contains it
-        com,
-        kin_prev=kin_before,
-        kin_next=kin_after,
-    )
-    if not tp.feasible:
-        return _fail(state, FailureReason.NOT_BALANCED, limb, "no balanced COM reachable")
-    res = balance_ik(ctx, np.array(state.q), state.contacts, tp.point)
-    q1 = np.array(res.q)
-    if not _holds(ctx, q1, state.contacts):
-        return _fail(state, FailureReason.NOT_BALANCED, limb, "COM shift not reachable", 1)
-    com1 = com_of(ctx, q1)
-    if balance_margin(ctx, after, com1) < ctx.params.margin:
-        msg = (
-            f"COM shift not balanced: {balance_margin(ctx, after, com1):.3g} N, {com1}, {tp.point}"
-        )
-        return _fail(state, FailureReason.NOT_BALANCED, limb, msg, 1)
     spec = ctx.character.limb(limb)
     new, report = ContactState(q1, after), None
     for offset in _lift_offsets(ctx.params.lift, old.normal):

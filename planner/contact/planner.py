@@ -11,12 +11,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.character import Character
+from planner.character import MAX_PITCH, Character
 from planner.contact.context import ContactParams, make_context
 from planner.contact.reachability import ReachabilityChecker
-from planner.contact.root_path import plan_root_path
+from planner.contact.root_path import RootPath, plan_root_path
+from planner.contact.root_sampler import OrientationBounds
 from planner.contact.sequence import SequenceParams, contact_sequence
 from planner.contact.sequence_motion import SequenceMotion, sequence_motion
+from planner.contact.slope import LEVEL_PITCH, follow_slope, straight_slope_path
 from planner.contact.standing import standing_state, state_from_root_pose
 from planner.contact.state import ContactState
 from planner.kinematics import frame_placement
@@ -46,13 +48,20 @@ class Endpoint:
 class PlanOptions:
     """rate : keyframes per second. step : m between root-path checks (<= 0.05).
     sequence : contact-sequence tuning. contact : contact-generation tuning. limbs : limbs
-    the walk may use besides those in contact at the start or goal (a hand on a handrail)."""
+    the walk may use besides those in contact at the start or goal (a hand on a handrail).
+    max_pitch : rad, how far the trunk may pitch (None: the character's ``max_pitch``); above
+    ``LEVEL_PITCH`` the root path is laid along the terrain's slope (a hexapod climbing)."""
 
     rate: float = 30.0
     step: float = 0.05
     sequence: SequenceParams = field(default_factory=SequenceParams)
     contact: ContactParams = field(default_factory=ContactParams)
     limbs: tuple[str, ...] = ()
+    max_pitch: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.max_pitch is not None and not 0.0 <= self.max_pitch <= MAX_PITCH:
+            raise ValueError(f"max_pitch must be in [0, {MAX_PITCH}] rad")
 
 
 @dataclass(frozen=True, slots=True)
@@ -156,6 +165,7 @@ def plan_contact_motion(
     unknown = [x for x in opts.limbs if x not in names]
     if unknown:
         raise ValueError(f"options.limbs: unknown limbs {unknown}; expected some of {names}")
+    max_pitch = character.max_pitch if opts.max_pitch is None else opts.max_pitch
     whole = Deadline(time_budget_s)
     until = Deadline(SEARCH_SHARE * time_budget_s)  # the search; keyframes get the rest
     timings: dict[str, float] = {}
@@ -184,6 +194,14 @@ def plan_contact_motion(
         return PlanResult(status, plan, {}, f"goal: {goal_state.message}")
 
     ctx = make_context(scene, character, data, opts.contact)
+    start_root = _root_pose(character, start_state.value.q)
+    goal_root = _root_pose(character, goal_state.value.q)
+    direct = None  # a trunk that may pitch first tries the straight line over the terrain
+    if max_pitch > LEVEL_PITCH:
+        direct = straight_slope_path(
+            checker, start_root, goal_root, spacing=opts.sequence.spacing, max_pitch=max_pitch
+        )
+        lap("root_path")
     best: tuple[PlanResult[tuple[ContactState, ...]], FloatArray, PlanResult[Any]] | None = None
     attempts = 0
     for jitter in _RETRY_JITTERS:
@@ -192,21 +210,28 @@ def plan_contact_motion(
         if best is not None and (best[0].status is PlanStatus.SOLVED or until()):
             break
         attempts += 1
-        path = plan_root_path(
-            checker,
-            _root_pose(character, start_state.value.q),
-            _root_pose(character, goal_state.value.q),
-            rng=rng,
-            until=until,
-            step=opts.step,
-        )
-        lap("root_path")
-        if not path.status or path.value is None:
-            if best is None:
-                plan = ContactPlan((start_state.value,), empty_path, None, timings)
-                return PlanResult(path.status, plan, dict(path.stats), path.message)
-            break
-        poses = path.value.resample(opts.sequence.spacing)
+        path: PlanResult[RootPath]
+        if direct is not None:
+            poses, path = direct, PlanResult(PlanStatus.SOLVED, None, {"direct_path": 1})
+        else:
+            path = plan_root_path(
+                checker,
+                start_root,
+                goal_root,
+                rng=rng,
+                until=until,
+                step=opts.step,
+                orientation_bounds=OrientationBounds(pitch=(-max_pitch, max_pitch)),
+            )
+            lap("root_path")
+            if not path.status or path.value is None:
+                if best is None:
+                    plan = ContactPlan((start_state.value,), empty_path, None, timings)
+                    return PlanResult(path.status, plan, dict(path.stats), path.message)
+                break
+            poses = path.value.resample(opts.sequence.spacing)
+            if max_pitch > LEVEL_PITCH:
+                poses = follow_slope(checker, poses, max_pitch=max_pitch)
         params = replace(opts.sequence, jitter=max(opts.sequence.jitter, jitter))
         sequence = contact_sequence(
             ctx,

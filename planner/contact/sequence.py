@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.contact.checks import check_state
+from planner.contact.checks import check_state, com_of, kinematics_of
 from planner.contact.context import ContactContext
 from planner.contact.generation import (
     active_dofs,
@@ -59,6 +59,8 @@ _ADVANCE_TRIES = (
     (0.5, 0.1, False),
     (0.5, 0.05, True),
 )
+_ADVANCE_SLACK = 0.03  # m: an advance leaves the COM this deep in every leg's range (or
+# no shallower than it was): a leg left at the end of its range cannot be released
 _ROOT_FRAME = 1  # Pinocchio frame of the free-flyer root joint
 _PROGRESS_WEIGHTS = np.array([1.0, 1.0, 1.0 / 3.0])
 _FOOTHOLD_RADIUS = 0.35  # m around a limb's nominal position searched for its foothold
@@ -72,8 +74,11 @@ class SequenceParams:
     toward per gait cycle. min_step : m, a limb closer than this to its foothold does not
     step. goal_tolerance : m, a contact this close to the goal's counts as reached.
     max_states : cap on emitted states. max_stuck : gait cycles in a row with neither body
-    progress nor a step before giving up. jitter : m, scale of the random term added to the
-    scores of contact candidates (``create_contact``'s ``randomness``); retries raise it.
+    progress nor a step before giving up. idle_rounds : gait rounds (a cycle per walking
+    limb) without the body getting further along the guide before giving up (steps that
+    lead nowhere; the planner then retries along a new guide). jitter : m, scale of the
+    random term added to the scores of contact candidates (``create_contact``'s
+    ``randomness``); retries raise it.
     """
 
     spacing: float = 0.05
@@ -83,6 +88,7 @@ class SequenceParams:
     goal_tolerance: float = 0.03
     max_states: int = 200
     max_stuck: int = 3
+    idle_rounds: int = 4
     jitter: float = 0.05
 
     def __post_init__(self) -> None:
@@ -96,6 +102,8 @@ class SequenceParams:
             raise ValueError("min_step must be in (0, 0.5] m")
         if not 0 <= self.jitter <= 1.0:
             raise ValueError("jitter must be in [0, 1] m")
+        if not 0 < self.idle_rounds <= 100:
+            raise ValueError("idle_rounds must be in [1, 100]")
         if not 0 < self.max_states <= 10_000:
             raise ValueError("max_states must be in [1, 10000]")
 
@@ -185,6 +193,12 @@ def _steps_on(
         return False
     forward = float(np.dot(placed - old.position, tangent))
     return forward >= p.min_step and float(np.dot(placed - target, tangent)) <= reach
+
+
+def kinematic_slack(ctx: ContactContext, state: ContactState) -> float:
+    """How deep (m) the COM of ``state`` is inside the kinematic polytope of its contacts
+    (negative outside)."""
+    return -float(kinematics_of(ctx, state.contacts).violation(com_of(ctx, state.q)))
 
 
 def advance_body(
@@ -325,6 +339,7 @@ def contact_sequence(
 
     stuck = 0
     reach = p.lookahead  # m ahead where footholds are taken; grows while stuck
+    furthest, idle = s, 0  # the furthest the body got, and cycles since
     while True:
         if until():
             return result(PlanStatus.TIMEOUT, "time budget spent while walking the path")
@@ -334,6 +349,7 @@ def contact_sequence(
         # 1. advance the body along the guide
         moved = False
         if s < guide.length - 1e-9:
+            slack = kinematic_slack(ctx, current)
             for fraction, rise, over_body in _ADVANCE_TRIES:
                 target_s = min(s + fraction * p.advance, guide.length)
                 target = guide.at(target_s)
@@ -343,6 +359,8 @@ def contact_sequence(
                 advanced = advance_body(ctx, current, target)
                 if advanced is None:
                     continue
+                if kinematic_slack(ctx, advanced) < min(slack, _ADVANCE_SLACK):
+                    continue  # a leg would be left at the end of its range
                 new_s = guide.progress(advanced.q[:3], s)
                 if new_s > s + 1e-3:
                     current = advanced  # same contacts: the body moves within the phase
@@ -394,6 +412,15 @@ def contact_sequence(
                     stepped = True
                     stats["repositions"] = int(stats.get("repositions", 0)) + 1
                     break
+        if s > furthest + 1e-3:
+            furthest, idle = s, 0
+        else:
+            idle += 1
+        if idle > p.idle_rounds * len(order):
+            return result(
+                PlanStatus.APPROXIMATE,
+                f"no progress in {p.idle_rounds} gait rounds at {s:.2f} m of {guide.length:.2f} m",
+            )
         if stepped or moved:
             stuck = 0
             continue

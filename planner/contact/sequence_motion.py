@@ -157,24 +157,30 @@ def _hold_first(
     q: FloatArray,
     stance: Sequence[FramePlacementTask | FramePositionTask],
     com: FloatArray,
+    holding: FloatArray,
 ) -> tuple[FloatArray, float]:
     """Re-solve a keyframe whose stance contacts slipped: contacts and the COM target first;
     if the contacts still slip, contacts alone with the posture kept near ``q`` (the COM then
-    leaves its curve; the report's COM error says by how much). Returns the configuration
-    and its largest contact error (m)."""
+    leaves its curve; the report's COM error says by how much); last, the same two from
+    ``holding`` (nq,), the phase's own state, which holds the stance (a tracker wound into
+    a corner does not unwind from where it is). Returns the configuration and its largest
+    contact error (m)."""
     attempts: list[list[Any]] = [[*stance, ComTask(com)], list(stance)]
     best_q, best_err = q, _stance_error(model, q, stance)
-    for tasks in attempts:
-        weights = np.ones(model.nv)
-        weights[:6] = 0.0
-        result = solve_ik(
-            model, best_q, [*tasks, PostureTask(q, weights, gain=0.3)], max_iterations=200
-        )
-        err = _stance_error(model, np.asarray(result.q), stance)
-        if err < best_err:
-            best_q, best_err = np.array(result.q), err
-        if best_err <= _HOLD_REPAIR:
-            break
+    weights = np.ones(model.nv)
+    weights[:6] = 0.0
+    for seed in (q, holding):
+        start = best_q if seed is q else np.asarray(holding, dtype=np.float64)
+        for tasks in attempts:
+            result = solve_ik(
+                model, start, [*tasks, PostureTask(seed, weights, gain=0.3)], max_iterations=200
+            )
+            err = _stance_error(model, np.asarray(result.q), stance)
+            if err < best_err:
+                best_q, best_err = np.array(result.q), err
+                start = best_q
+            if best_err <= _HOLD_REPAIR:
+                return best_q, best_err
     return best_q, best_err
 
 
@@ -299,7 +305,7 @@ def sequence_motion(
         configurations = []
         for t, qk, err in zip(track.times, track.configurations, track.contact_errors, strict=True):
             if err > _HOLD_REPAIR:
-                qk, err = _hold_first(model, np.array(qk), stance, com_at(float(t)))
+                qk, err = _hold_first(model, np.array(qk), stance, com_at(float(t)), state.q)
                 repaired += 1
             contact_error = max(contact_error, float(err))
             configurations.append(qk)

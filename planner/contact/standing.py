@@ -30,6 +30,8 @@ from planner.contact.body import (
     sphere_centre,
 )
 from planner.contact.reachability import ReachabilityChecker, ground_limbs
+from planner.contact.root_sampler import euler_matrices
+from planner.contact.slope import LEVEL_PITCH, body_span, terrain_line
 from planner.contact.state import ContactState, LimbContact
 from planner.kinematics import (
     FramePositionTask,
@@ -318,6 +320,26 @@ def _fail(message: str) -> PlanResult[ContactState]:
     return PlanResult(PlanStatus.INFEASIBLE, None, {}, message)
 
 
+def _stance_rotation(checker: ReachabilityChecker, point: FloatArray, heading: float) -> FloatArray:
+    """(3, 3) root rotation of a stance at ``point`` (3,) facing ``heading`` (rad): level,
+    or for a character allowed to pitch, lying along the terrain's slope there."""
+    rotation = yaw_matrix(np.array(heading))
+    max_pitch = checker.character.max_pitch
+    if max_pitch <= LEVEL_PITCH:
+        return rotation
+    half_length, half_width, stand = body_span(checker)
+    pose = np.eye(4)
+    pose[:3, :3] = rotation
+    pose[:3, 3] = point + np.array([0.0, 0.0, stand])
+    line = terrain_line(checker.scene, pose, half_length, half_width)
+    if line is None:
+        return rotation
+    pitch = float(np.clip(np.arctan(line[1]), -max_pitch, max_pitch))
+    return np.asarray(
+        euler_matrices(np.array([heading]), np.array([-pitch]), np.zeros(1))[0], dtype=np.float64
+    )
+
+
 def standing_state(
     scene: Scene,
     character: Character,
@@ -333,7 +355,8 @@ def standing_state(
     """A balanced standing state at ``point`` (3,), a point of a Support surface (world, m).
 
     The root is placed so the ground limbs' reference contacts are centred on the point, with
-    yaw ``yaw`` (rad) or else 16 yaws 22.5 degrees apart from one drawn from ``rng``; further
+    yaw ``yaw`` (rad) or else 16 yaws 22.5 degrees apart from one drawn from ``rng`` (and, for
+    a character with a ``max_pitch``, pitched along the terrain's slope); further
     attempts also shift the root sideways at random (``params.jitter``). Root heights tried,
     low to high: the reference height above the lowest, mean and highest Support surface
     found below the contacts, and the height at which the trunk clears the Support surfaces
@@ -360,7 +383,7 @@ def standing_state(
             shifted = attempt >= _HEADINGS
         else:
             heading, shifted = float(yaw), attempt > 0
-        rotation = yaw_matrix(np.array(heading))
+        rotation = _stance_rotation(checker, p, heading)
         shift = np.zeros(3)
         if shifted:
             shift[:2] = rng.normal(0.0, params.jitter, size=2)

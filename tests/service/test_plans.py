@@ -9,6 +9,9 @@ import httpx
 import numpy as np
 import pytest
 
+from planner.character import MAX_PITCH
+from service import schemas
+
 pytestmark = pytest.mark.anyio
 
 WALK = {
@@ -94,6 +97,8 @@ async def test_seed_is_drawn_and_echoed(client: httpx.AsyncClient) -> None:
         ({"options": {"rate": 1000}}, "options.rate"),
         ({"options": {"limbs": ["tail"]}}, "options.limbs"),
         ({"options": {"limbs": ["left_hand"] * 17}}, "options.limbs"),
+        ({"options": {"max_pitch": 0.9}}, "options.max_pitch"),
+        ({"options": {"max_pitch": -0.1}}, "options.max_pitch"),
         ({"seed": -1}, "seed"),
         ({"unexpected": 1}, "unexpected"),
     ],
@@ -124,3 +129,8 @@ async def test_unreachable_goal_stops_within_budget(client: httpx.AsyncClient) -
     assert response.status_code == 200
     assert response.json()["status"] in {"TIMEOUT", "INFEASIBLE"}
     assert elapsed < 1.5 + 5.0  # budget + margin, plus a worker's first start-up
+
+
+def test_service_pitch_bound_is_the_planner_bound() -> None:
+    """The schema repeats the planner's bound (clients import the schemas, never planner)."""
+    assert schemas.MAX_PITCH == MAX_PITCH

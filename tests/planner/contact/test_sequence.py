@@ -19,7 +19,14 @@ def _line(n: int, step: float) -> np.ndarray:
 
 @pytest.mark.parametrize(
     "field, value",
-    [("spacing", 0.0), ("max_states", 0), ("lookahead", 3.0), ("advance", 0.0), ("jitter", 2.0)],
+    [
+        ("spacing", 0.0),
+        ("max_states", 0),
+        ("lookahead", 3.0),
+        ("advance", 0.0),
+        ("jitter", 2.0),
+        ("idle_rounds", 0),
+    ],
 )
 def test_params_out_of_range_are_refused(field: str, value: float) -> None:
     with pytest.raises(ValueError, match=field):

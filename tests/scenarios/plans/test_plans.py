@@ -20,7 +20,7 @@ import pytest
 
 from planner.character import get_character
 from planner.contact.checks import check_state, contact_on_surface, hold_error, within_limits
-from planner.contact.context import make_context
+from planner.contact.context import ContactParams, make_context
 from planner.contact.planner import ContactPlan, Endpoint, PlanOptions, plan_contact_motion
 from planner.contact.sequence import SequenceParams
 from planner.contact.sequence_motion import phase_kinematics
@@ -54,13 +54,20 @@ def scenario_scene(spec: dict[str, Any]) -> Scene | None:
 
 
 def scenario_options(spec: dict[str, Any]) -> PlanOptions:
-    """The plan options of a scenario (``"options": {"limbs": [...], "max_states": n}``, the
-    service's names; defaults otherwise)."""
+    """The plan options of a scenario (``"options": {"limbs": [...], "max_states": n,
+    "margin": N, "max_pitch": rad}``, the service's names; defaults otherwise)."""
     options = spec.get("options", {})
     sequence = SequenceParams(
         max_states=int(options.get("max_states", SequenceParams().max_states))
     )
-    return PlanOptions(limbs=tuple(options.get("limbs", ())), sequence=sequence)
+    contact = ContactParams(margin=float(options.get("margin", ContactParams().margin)))
+    pitch = options.get("max_pitch")
+    return PlanOptions(
+        limbs=tuple(options.get("limbs", ())),
+        sequence=sequence,
+        contact=contact,
+        max_pitch=None if pitch is None else float(pitch),
+    )
 
 
 def _plan(name: str) -> tuple[PlanResult[ContactPlan], Any, Any, Any]:
@@ -89,11 +96,12 @@ def planned(request: pytest.FixtureRequest) -> tuple[str, PlanResult[ContactPlan
 
 
 def test_solved_and_every_state_valid(planned) -> None:  # type: ignore[no-untyped-def]
-    _, result, scene, character, data = planned
+    name, result, scene, character, data = planned
     assert result.status is PlanStatus.SOLVED, result.message
     plan = result.value
     assert plan is not None and len(plan.states) >= 3
-    ctx = make_context(scene, character, data)
+    # the scenario's own margin (a 5 kg hexapod asks for less than 1 N)
+    ctx = make_context(scene, character, data, scenario_options(SPECS[name]).contact)
     for state in plan.states:
         report = check_state(ctx, state)
         assert report.valid, report
@@ -129,10 +137,10 @@ def test_optional_limbs_used(planned) -> None:  # type: ignore[no-untyped-def]
 
 
 def test_keyframes_hold_contacts_and_com_stays_in_kinematic_polytopes(planned) -> None:  # type: ignore[no-untyped-def]
-    _, result, scene, character, data = planned
+    name, result, scene, character, data = planned
     plan = result.value
     assert plan is not None and plan.motion is not None
-    ctx = make_context(scene, character, data)
+    ctx = make_context(scene, character, data, scenario_options(SPECS[name]).contact)
     phases = plan.motion.phases
     assert plan.motion.keyframes
     for key in plan.motion.keyframes:

@@ -1,0 +1,109 @@
+"""Root paths laid along the terrain for a trunk that may pitch (the hexapod on steps)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from planner.contact.slope import (
+    LEVEL_PITCH,
+    body_span,
+    follow_slope,
+    straight_slope_path,
+    terrain_line,
+)
+from planner.contact.standing import standing_state
+from planner.kinematics import frame_placement
+from planner.result import PlanStatus
+from planner.scene import builtin as b
+from tests.planner.contact.contact_helpers import character_and_data, checker, scene
+
+LANE_SLOPE = math.atan(b.CLIMB_RISE / b.CLIMB_DEPTH)  # rad, 34 degrees
+
+
+def _pitch(pose: np.ndarray) -> float:
+    """Nose-up angle (rad) of a root pose (4, 4): its x axis above the horizontal."""
+    return float(math.asin(np.clip(pose[2, 0], -1.0, 1.0)))
+
+
+def _facing_x(x: float, y: float, z: float) -> np.ndarray:
+    pose = np.eye(4)
+    pose[:3, 3] = (x, y, z)
+    return pose
+
+
+def test_the_hexapod_may_pitch_and_the_humanoid_stays_level() -> None:
+    assert character_and_data("hexapod")[0].max_pitch > LEVEL_PITCH
+    assert character_and_data("humanoid")[0].max_pitch <= LEVEL_PITCH
+
+
+def test_terrain_line_is_level_on_flat_ground_and_follows_the_stairs() -> None:
+    half_length, half_width, stand = body_span(checker("hexapod", "flat"))
+    assert 0.05 < stand < 0.3 and half_length >= 0.3 and half_width > 0.2
+    flat = terrain_line(scene("flat"), _facing_x(0.0, 0.0, 0.2), half_length, half_width)
+    assert flat is not None
+    assert flat[0] == pytest.approx(0.0, abs=1e-9) and flat[1] == pytest.approx(0.0, abs=1e-9)
+    # mid-flight on the stairs (0.15 m rises, 0.3 m treads): about half a metre per metre
+    x = b.STAIRS_START_X + 2.5 * b.STAIRS_TREAD
+    line = terrain_line(scene("stairs"), _facing_x(x, 0.0, 0.6), half_length, half_width)
+    assert line is not None
+    assert line[1] == pytest.approx(b.STAIRS_RISE / b.STAIRS_TREAD, abs=0.15)
+
+
+def test_straight_path_up_the_wall_lies_along_the_lane() -> None:
+    check = checker("hexapod", "climbing_wall")
+    character = check.character
+    start, goal = _facing_x(0.4, 0.0, 0.13), _facing_x(3.4, 0.0, 1.53)
+    poses = straight_slope_path(check, start, goal, spacing=0.05, max_pitch=character.max_pitch)
+    assert poses is not None
+    np.testing.assert_allclose(poses[0], start)
+    np.testing.assert_allclose(poses[-1], goal)
+    assert all(check.is_valid(p) for p in poses)
+    pitches = np.array([_pitch(p) for p in poses])
+    assert np.all(np.abs(pitches) <= character.max_pitch + 1e-9)
+    on_lane = [
+        _pitch(p)
+        for p in poses
+        if b.CLIMB_START_X + 0.5 < p[0, 3] < b.CLIMB_START_X + 0.5 + 3 * b.CLIMB_DEPTH
+    ]
+    assert on_lane and np.all(np.abs(np.array(on_lane) - LANE_SLOPE) < 0.15)
+    heights = poses[1:-1, 2, 3]  # the ends are the given roots, at their own heights
+    assert np.all(np.diff(heights) > -0.03)  # climbs, give or take a smoothing wobble
+
+
+def test_straight_path_is_refused_when_blocked() -> None:
+    """Through the pen's wall there is no straight line: the RRT has to search."""
+    check = checker("hexapod", "pen")
+    inside, outside = _facing_x(*b.PEN_CENTRE, 0.13), _facing_x(0.0, 0.0, 0.13)
+    assert straight_slope_path(check, inside, outside, spacing=0.05, max_pitch=0.7) is None
+
+
+def test_follow_slope_keeps_the_ends_and_pitches_the_middle() -> None:
+    check = checker("hexapod", "climbing_wall")
+    xs = np.linspace(0.4, 3.4, 40)
+    poses = np.stack([_facing_x(x, 0.0, 0.13 + 1.4 * (x - 0.4) / 3.0) for x in xs])
+    laid = follow_slope(check, poses, max_pitch=0.7)
+    np.testing.assert_allclose(laid[0], poses[0])
+    np.testing.assert_allclose(laid[-1], poses[-1])
+    middle = [_pitch(p) for p in laid if 1.6 < p[0, 3] < 2.2]
+    assert middle and min(middle) > 0.3
+
+
+def test_hexapod_stands_along_the_lane() -> None:
+    character, data = character_and_data("hexapod")
+    x = b.CLIMB_START_X + 2.5 * b.CLIMB_DEPTH
+    found = standing_state(
+        scene("climbing_wall"),
+        character,
+        data,
+        np.array([x, 0.02, 3 * b.CLIMB_RISE]),
+        rng=np.random.default_rng(0),
+        yaw=0.0,
+        checker=checker("hexapod", "climbing_wall"),
+    )
+    assert found.status is PlanStatus.SOLVED, found.message
+    assert found.value is not None
+    root = frame_placement(character.model, found.value.q, 1)
+    assert _pitch(root) > 0.3
