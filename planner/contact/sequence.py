@@ -88,7 +88,7 @@ class SequenceParams:
     goal_tolerance: float = 0.03
     max_states: int = 200
     max_stuck: int = 3
-    idle_rounds: int = 4
+    idle_rounds: int = 6
     jitter: float = 0.05
 
     def __post_init__(self) -> None:
