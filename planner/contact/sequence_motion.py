@@ -298,7 +298,6 @@ def sequence_motion(
             t_start=t0,
             t_end=t1,
             rate=rate,
-            predict=True,
         )
         first = 0 if k == 0 or not keyframes else 1
         stance = _stance_tasks(character, state.contacts)
