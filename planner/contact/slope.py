@@ -66,6 +66,14 @@ def terrain_line(
     return float(height), float(slope)
 
 
+def along_slope(yaw: float, slope: float, max_pitch: float) -> tuple[FloatArray, float]:
+    """(3, 3) rotation facing ``yaw`` (rad) with the nose raised along ground of ``slope``
+    (dz/ds), and that pitch (rad, within ``max_pitch``); R = Rz(yaw) Ry(-pitch)."""
+    pitch = float(np.clip(math.atan(slope), -max_pitch, max_pitch))
+    rotation = euler_matrices(np.array([yaw]), np.array([-pitch]), np.zeros(1))[0]
+    return np.asarray(rotation, dtype=np.float64), pitch
+
+
 def _settle(
     checker: ReachabilityChecker,
     poses: FloatArray,
@@ -95,10 +103,8 @@ def _settle(
         yaw = math.atan2(ahead[1], ahead[0])
         height = float(np.mean([h for h, _ in near]))
         slope = float(np.mean([s for _, s in near]))
-        pitch = float(np.clip(math.atan(slope), -max_pitch, max_pitch))
         pose = np.eye(4)
-        # R = Rz(yaw) Ry(-pitch): the nose rises with the slope
-        pose[:3, :3] = euler_matrices(np.array([yaw]), np.array([-pitch]), np.zeros(1))[0]
+        pose[:3, :3], pitch = along_slope(yaw, slope, max_pitch)
         pose[:3, 3] = (*poses[i, :2, 3], height + stand / math.cos(pitch))
         for lift in np.arange(0.0, max_lift + 1e-9, _LIFT_STEP):
             lifted = pose.copy()

@@ -30,8 +30,7 @@ from planner.contact.body import (
     sphere_centre,
 )
 from planner.contact.reachability import ReachabilityChecker, ground_limbs
-from planner.contact.root_sampler import euler_matrices
-from planner.contact.slope import LEVEL_PITCH, body_span, terrain_line
+from planner.contact.slope import LEVEL_PITCH, along_slope, body_span, terrain_line
 from planner.contact.state import ContactState, LimbContact
 from planner.kinematics import (
     FramePositionTask,
@@ -334,10 +333,7 @@ def _stance_rotation(checker: ReachabilityChecker, point: FloatArray, heading: f
     line = terrain_line(checker.scene, pose, half_length, half_width)
     if line is None:
         return rotation
-    pitch = float(np.clip(np.arctan(line[1]), -max_pitch, max_pitch))
-    return np.asarray(
-        euler_matrices(np.array([heading]), np.array([-pitch]), np.zeros(1))[0], dtype=np.float64
-    )
+    return along_slope(heading, line[1], max_pitch)[0]
 
 
 def standing_state(
