@@ -17,11 +17,11 @@ from planner.contact.reachability import ReachabilityChecker
 from planner.contact.root_path import RootPath, plan_root_path
 from planner.contact.root_sampler import OrientationBounds
 from planner.contact.sequence import SequenceParams, contact_sequence
-from planner.contact.sequence_motion import SequenceMotion, sequence_motion
 from planner.contact.slope import LEVEL_PITCH, follow_slope, straight_slope_path
 from planner.contact.standing import standing_state, state_from_root_pose
 from planner.contact.state import ContactState
 from planner.kinematics import frame_placement
+from planner.motion.sequence import SequenceMotion, sequence_motion
 from planner.offline import OfflineData
 from planner.result import PlanResult, PlanStatus
 from planner.scene import Scene
@@ -249,10 +249,20 @@ def plan_contact_motion(
     assert best is not None
     sequence, poses, path = best
     states = sequence.value or (start_state.value,)
-    motion = sequence_motion(character, data, states, rate=opts.rate, until=whole)
+    motion = sequence_motion(
+        character, data, scene.collision.bvh, states, rate=opts.rate, until=whole
+    )
     lap("motion")
     status = sequence.status
     if status is PlanStatus.TIMEOUT and len(states) > 1:
         status = PlanStatus.APPROXIMATE
+    message = sequence.message
+    if status is PlanStatus.SOLVED and motion.quality.cut_short:
+        # SOLVED means every planned phase has keyframes; the budget ran out before that
+        status = PlanStatus.APPROXIMATE
+        message = (
+            f"keyframes for {motion.quality.phases_animated} of "
+            f"{motion.quality.phases_total} phases: the time budget ran out"
+        )
     stats = {**path.stats, **sequence.stats, "attempts": attempts}
-    return PlanResult(status, ContactPlan(states, poses, motion, timings), stats, sequence.message)
+    return PlanResult(status, ContactPlan(states, poses, motion, timings), stats, message)

@@ -23,8 +23,8 @@ from planner.contact.checks import check_state, contact_on_surface, hold_error, 
 from planner.contact.context import ContactParams, make_context
 from planner.contact.planner import ContactPlan, Endpoint, PlanOptions, plan_contact_motion
 from planner.contact.sequence import SequenceParams
-from planner.contact.sequence_motion import phase_kinematics
 from planner.contact.state import ContactState
+from planner.motion.sequence import phase_kinematics
 from planner.offline import load_offline_data
 from planner.result import PlanResult, PlanStatus
 from planner.scene import Scene

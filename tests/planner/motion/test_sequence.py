@@ -1,4 +1,5 @@
-"""Keyframes of a contact sequence: stance contacts held, point-foot swings by position."""
+"""Keyframes of a contact sequence through the one builder: stance contacts held, the COM on
+its curve, keyframes evenly spaced and checked, the same answer twice."""
 
 from __future__ import annotations
 
@@ -9,7 +10,6 @@ import numpy as np
 from planner.contact.checks import hold_error, make_contact, within_limits
 from planner.contact.context import ContactContext, make_context
 from planner.contact.generation import hold_tasks, posture_task
-from planner.contact.sequence_motion import _stance_tasks, sequence_motion
 from planner.contact.state import ContactState
 from planner.kinematics import (
     ComTask,
@@ -18,6 +18,8 @@ from planner.kinematics import (
     com_position,
     solve_ik,
 )
+from planner.motion.builder import keyframe_grid
+from planner.motion.sequence import sequence_motion
 from tests.planner.contact.contact_helpers import character_and_data, scene
 
 
@@ -49,35 +51,41 @@ def _hexapod_steps() -> tuple[ContactContext, tuple[ContactState, ...]]:
     return ctx, tuple(states)
 
 
-def test_point_stance_contacts_are_in_the_contact_tier() -> None:
-    ctx, states = _hexapod_steps()
-    tasks = _stance_tasks(ctx.character, states[0].contacts)
-    assert len(tasks) == 6
-    assert all(isinstance(t, FramePositionTask) for t in tasks)
-    assert all(t.priority is Priority.CONTACT for t in tasks)
+def _motion(ctx: ContactContext, states: tuple[ContactState, ...]):  # type: ignore[no-untyped-def]
+    return sequence_motion(ctx.character, ctx.data, ctx.scene.collision.bvh, states)
 
 
-def test_hexapod_keyframes_hold_stance_without_repair() -> None:
+def test_hexapod_keyframes_hold_stance_and_follow_the_com() -> None:
     ctx, states = _hexapod_steps()
-    motion = sequence_motion(ctx.character, ctx.data, states)
+    motion = _motion(ctx, states)
     assert motion.report["phases_animated"] == len(states)
-    # Every keyframe converges in the tracking pass (none slips and needs re-solving).
-    assert motion.report["keyframes_repaired"] == 0
-    assert float(motion.report["max_com_error_m"]) <= 1e-3  # type: ignore[arg-type]
-    times = [k.t for k in motion.keyframes]
-    assert times == sorted(times)
+    assert motion.quality.complete
+    assert motion.quality.colliding_keyframes == 0
+    assert motion.quality.com_error_max <= 0.01
+    times = np.array([k.t for k in motion.keyframes])
+    gaps = np.diff(times)
+    assert gaps.min() >= 0.5 / 30.0 and gaps.max() <= 1.5 / 30.0
     for key in motion.keyframes:
         assert within_limits(ctx, np.asarray(key.q), tol=1e-6)
         phase = next(p for p in motion.phases if p.t0 - 1e-9 <= key.t <= p.t1 + 1e-9)
         held = [c for c in phase.contacts if c.limb in key.contacts]
-        assert hold_error(ctx, np.asarray(key.q), held) <= 2e-3
+        assert hold_error(ctx, np.asarray(key.q), held) <= 5e-3
 
 
 def test_sequence_motion_is_deterministic() -> None:
     ctx, states = _hexapod_steps()
-    a = sequence_motion(ctx.character, ctx.data, states)
-    b = sequence_motion(ctx.character, ctx.data, states)
+    a = _motion(ctx, states)
+    b = _motion(ctx, states)
     assert len(a.keyframes) == len(b.keyframes)
     for ka, kb in zip(a.keyframes, b.keyframes, strict=True):
         assert ka.t == kb.t
         assert np.array_equal(ka.q, kb.q)
+
+
+def test_keyframe_grid_is_even_and_ends_on_time() -> None:
+    for t1 in (0.0, 0.01, 0.5, 1.0, 1.02, 3.3333):
+        grid = keyframe_grid(0.0, t1, 30.0)
+        assert grid[0] == 0.0 and grid[-1] == t1
+        if len(grid) > 2:
+            gaps = np.diff(grid)
+            assert gaps.min() >= 0.5 / 30.0 and gaps.max() <= 1.5 / 30.0

@@ -1,0 +1,296 @@
+"""The one whole-body motion builder: a :class:`MotionSpec` in, keyframes and a report out.
+
+The COM curve and the phases come from the caller (a plan, a Twister step, a jump); the
+builder runs the QP tracker (``tracker``) at ``SUBSTEPS`` control steps per keyframe, keeps
+the keyframes on an even grid at ``spec.rate``, and checks every keyframe with the one
+checker (``checker``). It never raises on a motion it cannot make clean: the report says
+which keyframes collide or slip and whether the deadline cut the motion short.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from planner.character import Character
+from planner.kinematics import swing_trajectory
+from planner.motion import tuning
+from planner.motion.checker import KeyframeCheck, KeyframeChecker
+from planner.motion.spec import MotionPhase, MotionSpec
+from planner.motion.tracker import StepTargets, WholeBodyTracker
+from planner.motion.types import ComSegment, Keyframe, Phase
+from planner.termination import Termination, never
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class MotionReport:
+    """How a motion came out.
+
+    phases_animated / phases_total : phases whose whole span has keyframes. cut_short :
+    the deadline stopped the tracking before the end. colliding_keyframes : keyframes the
+    checker refuses (into the scene or into the body); worst_scene_depth (m) and
+    worst_shape say where; worst_self_depth (m). max_hold_error : m, stance contacts.
+    com_error_max / com_error_p99 : m, keyframe COM against its curve. qp_fallbacks :
+    control steps solved without the collision dampers (their QP had no solution).
+    swings_raised : swing phases tracked again with a higher arc (2PAC 7.2).
+    """
+
+    phases_animated: int
+    phases_total: int
+    cut_short: bool
+    colliding_keyframes: int
+    worst_scene_depth: float
+    worst_shape: str | None
+    worst_self_depth: float
+    max_hold_error: float
+    com_error_max: float
+    com_error_p99: float
+    qp_fallbacks: int
+    swings_raised: int = 0
+    colliding_times: tuple[float, ...] = field(default=())
+
+    @property
+    def complete(self) -> bool:
+        """Every phase animated, no keyframe colliding, every contact held."""
+        return (
+            self.phases_animated == self.phases_total
+            and self.colliding_keyframes == 0
+            and self.max_hold_error <= tuning.HOLD_TOLERANCE
+        )
+
+    def as_dict(self) -> dict[str, Any]:
+        """The report as JSON-ready values."""
+        return {
+            "phases_animated": self.phases_animated,
+            "phases_total": self.phases_total,
+            "cut_short": self.cut_short,
+            "colliding_keyframes": self.colliding_keyframes,
+            "worst_scene_depth_m": self.worst_scene_depth,
+            "worst_shape": self.worst_shape,
+            "worst_self_depth_m": self.worst_self_depth,
+            "max_hold_error_m": self.max_hold_error,
+            "com_error_max_m": self.com_error_max,
+            "com_error_p99_m": self.com_error_p99,
+            "qp_fallbacks": self.qp_fallbacks,
+            "swings_raised": self.swings_raised,
+            "complete": self.complete,
+        }
+
+
+@dataclass(frozen=True, slots=True)
+class BuiltMotion:
+    """Phases, COM segments and keyframes of a motion, with its report. ``end`` is the
+    configuration (nq,) the motion ends in."""
+
+    phases: tuple[Phase, ...]
+    com: tuple[ComSegment, ...]
+    keyframes: tuple[Keyframe, ...]
+    report: MotionReport
+    end: FloatArray
+
+
+def keyframe_grid(t0: float, t1: float, rate: float) -> FloatArray:
+    """Times (k,) from ``t0`` every ``1 / rate`` s to ``t1``: the last interval is between
+    half a period and one and a half periods long (never a sliver), unless the whole span is
+    shorter."""
+    if not (math.isfinite(t0) and math.isfinite(t1)) or t1 < t0:
+        raise ValueError("need finite t0 <= t1")
+    period = 1.0 / rate
+    count = max(1, round((t1 - t0) / period))
+    if t1 - t0 < 0.5 * period:
+        return np.array([t0, t1]) if t1 > t0 else np.array([t0])
+    return np.asarray(t0 + (t1 - t0) * np.arange(count + 1) / count, dtype=np.float64)
+
+
+class _Targets:
+    """Per-time targets of a spec: the phase, its stance, the COM and the swing pose; the
+    swing arc of a phase may be raised (``lifts``, per phase index)."""
+
+    def __init__(self, character: Character, spec: MotionSpec) -> None:
+        self.character = character
+        self.spec = spec
+        self.breaks = np.array([p.t1 for p in spec.phases])
+        self.lifts: dict[int, float] = {}
+        self._arcs: dict[tuple[int, float], Any] = {}
+
+    def phase_index(self, t: float) -> int:
+        """The phase running at ``t`` (the later one at a boundary)."""
+        k = int(np.searchsorted(self.breaks, t, side="right"))
+        return min(k, len(self.spec.phases) - 1)
+
+    def arc(self, k: int) -> Any:
+        """The swing path of phase k (t -> pose (4, 4)), or None without a swing."""
+        phase = self.spec.phases[k]
+        swing = phase.swing
+        if swing is None or phase.t1 <= phase.t0:
+            return None
+        lift = self.lifts.get(k, swing.lift)
+        key = (k, lift)
+        if key not in self._arcs:
+            normal = self.character.limb(swing.limb).normal
+            self._arcs[key] = swing_trajectory(
+                swing.start, swing.end, phase.t0, phase.t1, lift=lift, normal_in_frame=normal
+            )
+        return self._arcs[key]
+
+    def at(self, t: float) -> StepTargets:
+        k = self.phase_index(t)
+        phase: MotionPhase = self.spec.phases[k]
+        curve = self.spec.com
+        com = np.asarray(curve(np.array([min(max(t, curve.t0), curve.t1)]))[0], dtype=np.float64)
+        arc = self.arc(k)
+        swing = None
+        if arc is not None and phase.swing is not None:
+            swing = (phase.swing.limb, np.asarray(arc(t), dtype=np.float64))
+        stance = tuple((c.limb, np.asarray(c.placement)) for c in phase.stance)
+        return StepTargets(stance, com, swing, phase.posture)
+
+
+@dataclass(slots=True)
+class _Segment:
+    """Keyframes tracked over one phase, with what the checker said of them."""
+
+    keyframes: list[Keyframe]
+    checks: list[KeyframeCheck]
+    com_errors: list[float]
+    q: FloatArray
+    landing_error: float
+    cut_short: bool = False
+
+    @property
+    def score(self) -> tuple[int, int]:
+        """Lower is better: colliding keyframes, then a missed landing."""
+        missed = int(self.landing_error > tuning.LANDING_TOLERANCE)
+        return sum(c.colliding for c in self.checks) + tuning.MISSED_LANDING_WEIGHT * missed, missed
+
+
+def _track_segment(
+    tracker: WholeBodyTracker,
+    checker: KeyframeChecker,
+    targets: _Targets,
+    q_start: FloatArray,
+    times: Sequence[float],
+    previous: float | None,
+    until: Termination,
+) -> _Segment:
+    """Track from ``q_start`` (nq,) at time ``previous`` through the keyframe ``times``."""
+    spec = targets.spec
+    model = tracker.model
+    q = np.array(q_start, dtype=np.float64)
+    out = _Segment([], [], [], q, 0.0)
+    for t in times:
+        if previous is not None:
+            if until():
+                out.cut_short = True
+                break
+            dt = (t - previous) / tuning.SUBSTEPS
+            for s in range(1, tuning.SUBSTEPS + 1):
+                q = tracker.step(q, targets.at(previous + s * dt), dt)
+        previous = t
+        phase = spec.phases[targets.phase_index(t)]
+        check = checker.check(q, phase.stance)
+        com = np.asarray(pin.centerOfMass(model, checker.data, q), dtype=np.float64)
+        out.checks.append(check)
+        out.com_errors.append(float(np.linalg.norm(com - targets.at(t).com)))
+        out.keyframes.append(
+            Keyframe(t=t, q=q.copy(), contacts=tuple(c.limb for c in phase.stance))
+        )
+    out.q = q
+    k = targets.phase_index(times[0]) if times else 0
+    swing = spec.phases[k].swing
+    if swing is not None and out.keyframes:
+        pin.framesForwardKinematics(model, tracker.data, q)
+        frame = tracker.data.oMf[tracker.character.limb(swing.limb).frame_id]
+        out.landing_error = float(
+            np.linalg.norm(frame.translation - targets.arc(k)(out.keyframes[-1].t)[:3, 3])
+        )
+    return out
+
+
+def build_motion(
+    character: Character,
+    scene_bvh: Any,
+    spec: MotionSpec,
+    *,
+    obstacles: Sequence[tuple[Any, Any]] = (),
+    until: Termination = never,
+) -> BuiltMotion:
+    """Keyframes of ``spec`` for ``character`` in the scene ``scene_bvh`` (coal BVH), each
+    checked. A swing phase whose keyframes collide, or whose effector does not reach its
+    landing, is tracked again from its start with the next higher arc of ``SWING_LIFTS``
+    (2PAC section 7.2), the best attempt kept. ``until`` is polled once per keyframe: when
+    it fires, the keyframes so far are returned and the report says ``cut_short``."""
+    tracker = WholeBodyTracker(character, scene_bvh, obstacles)
+    checker = KeyframeChecker(character, scene_bvh, obstacles)
+    targets = _Targets(character, spec)
+    grid = keyframe_grid(spec.phases[0].t0, spec.phases[-1].t1, spec.rate).tolist()
+    groups: list[list[float]] = []
+    for t in grid:
+        k = targets.phase_index(t)
+        if groups and targets.phase_index(groups[-1][0]) == k:
+            groups[-1].append(t)
+        else:
+            groups.append([t])
+    q = np.array(spec.q_start, dtype=np.float64)
+    segments: list[_Segment] = []
+    previous: float | None = None
+    retried = 0
+    for times in groups:
+        k = targets.phase_index(times[0])
+        swing = spec.phases[k].swing
+        lifts = [swing.lift, *(x for x in tuning.SWING_LIFTS if x > swing.lift)] if swing else [0.0]
+        best: _Segment | None = None
+        for attempt, lift in enumerate(lifts):
+            if attempt:
+                retried += 1
+                targets.lifts[k] = lift
+            tracker.reset()
+            segment = _track_segment(tracker, checker, targets, q, times, previous, until)
+            if best is None or segment.score < best.score:
+                best = segment
+                best_lift = lift
+            if best.score[0] == 0 or segment.cut_short:
+                break
+        assert best is not None
+        if swing is not None:
+            targets.lifts[k] = best_lift
+        segments.append(best)
+        q = best.q
+        previous = times[-1]
+        if best.cut_short:
+            break
+    keyframes = [key for s in segments for key in s.keyframes]
+    checks = [c for s in segments for c in s.checks]
+    errors = np.asarray([e for s in segments for e in s.com_errors])
+    colliding = tuple(key.t for key, c in zip(keyframes, checks, strict=True) if c.colliding)
+    deepest = max(checks, key=lambda c: c.scene_depth)
+    last_t = keyframes[-1].t
+    report = MotionReport(
+        phases_animated=sum(1 for p in spec.phases if p.t1 <= last_t + 1e-9),
+        phases_total=len(spec.phases),
+        cut_short=any(s.cut_short for s in segments),
+        colliding_keyframes=len(colliding),
+        worst_scene_depth=deepest.scene_depth,
+        worst_shape=deepest.shape,
+        worst_self_depth=max(c.self_depth for c in checks),
+        max_hold_error=max(c.hold_error for c in checks),
+        com_error_max=float(errors.max()),
+        com_error_p99=float(np.percentile(errors, 99)),
+        qp_fallbacks=tracker.fallbacks,
+        swings_raised=retried,
+        colliding_times=colliding,
+    )
+    phases = tuple(Phase(t0=p.t0, t1=p.t1, contacts=p.stance) for p in spec.phases)
+    com_segments = tuple(
+        ComSegment(t0=float(s.t0), t1=float(s.t1), control_points=s.control_points)
+        for s in spec.com.segments
+    )
+    return BuiltMotion(phases, com_segments, tuple(keyframes), report, q)

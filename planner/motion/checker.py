@@ -1,0 +1,105 @@
+"""The one test a keyframe must pass: no body shape inside the scene (stance effectors
+excepted, they rest on their surfaces), no two body parts inside each other, and the stance
+contacts where they were placed.
+
+Depths are signed distances from coal (negative inside) of the character's collision
+shapes against the scene BVH, static obstacles and each other (the declared pairs).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import coal
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from planner.character import Character
+from planner.motion import tuning
+from planner.motion.tracker import effector_geometries
+
+if TYPE_CHECKING:
+    from planner.contact.state import LimbContact
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class KeyframeCheck:
+    """scene_depth : m, deepest non-stance shape inside the scene or an obstacle (0 when
+    none); shape : its name. self_depth : m, deepest body pair overlap; hold_error : m,
+    largest distance of a stance effector from its contact placement."""
+
+    scene_depth: float
+    shape: str | None
+    self_depth: float
+    hold_error: float
+
+    @property
+    def colliding(self) -> bool:
+        """Deeper than the tolerances of ``tuning`` into the scene or into itself."""
+        return (
+            self.scene_depth > tuning.PENETRATION_TOLERANCE
+            or self.self_depth > tuning.SELF_PENETRATION_TOLERANCE
+        )
+
+    @property
+    def valid(self) -> bool:
+        """Not colliding, and every stance contact held within ``HOLD_TOLERANCE``."""
+        return not self.colliding and self.hold_error <= tuning.HOLD_TOLERANCE
+
+
+class KeyframeChecker:
+    """Checks keyframes of one character in one scene (``obstacles``: (coal geometry,
+    coal.Transform3s) pairs). Not thread-safe: one per thread."""
+
+    def __init__(
+        self, character: Character, scene_bvh: Any, obstacles: Sequence[tuple[Any, Any]] = ()
+    ) -> None:
+        self.character = character
+        self.model = character.model
+        self.data = self.model.createData()
+        self.geometry = character.geometry
+        self.geometry_data = pin.GeometryData(self.geometry)
+        for request in self.geometry_data.distanceRequests:
+            request.enable_signed_distance = True
+        self.targets: list[tuple[Any, Any]] = [(scene_bvh, coal.Transform3s()), *obstacles]
+        self.effectors = effector_geometries(character)
+        self.request = coal.DistanceRequest()
+        self.request.enable_signed_distance = True
+        self.result = coal.DistanceResult()
+
+    def check(self, q: FloatArray, stance: Sequence[LimbContact]) -> KeyframeCheck:
+        """The check of configuration ``q`` (nq,) holding ``stance``."""
+        model, data = self.model, self.data
+        pin.forwardKinematics(model, data, q)
+        pin.updateFramePlacements(model, data)
+        pin.updateGeometryPlacements(model, data, self.geometry, self.geometry_data)
+        skipped: set[int] = set()
+        hold = 0.0
+        for contact in stance:
+            skipped |= self.effectors[contact.limb]
+            frame = data.oMf[self.character.limb(contact.limb).frame_id]
+            gap = frame.translation - contact.placement[:3, 3]
+            hold = max(hold, float(np.sqrt(gap @ gap)))
+        deepest, shape = 0.0, None
+        for i, obj in enumerate(self.geometry.geometryObjects):
+            if i in skipped:
+                continue
+            placement = self.geometry_data.oMg[i]
+            transform = coal.Transform3s(placement.rotation, placement.translation)
+            for target, target_tf in self.targets:
+                self.result.clear()
+                d = coal.distance(
+                    target, target_tf, obj.geometry, transform, self.request, self.result
+                )
+                if -d > deepest:
+                    deepest, shape = -float(d), str(obj.name)
+        pin.computeDistances(self.geometry, self.geometry_data)
+        self_depth = 0.0
+        for result in self.geometry_data.distanceResults:
+            self_depth = max(self_depth, -float(result.min_distance))
+        return KeyframeCheck(deepest, shape, self_depth, hold)

@@ -1,0 +1,195 @@
+"""Collision avoidance as QP inequalities on the control step (a velocity damper).
+
+For every pair of shapes closer than ``INFLUENCE_DISTANCE`` (a body shape and the scene, or
+two body shapes), with signed distance ``d``, witness points ``p_a`` and ``p_b`` and unit
+normal ``n`` from ``a`` to ``b`` (coal), the step ``dq`` must satisfy
+
+    n . (J_b(p_b) - J_a(p_a)) dq >= -DAMPER_RATE (d - d_s)
+
+so that no pair closes more than a fraction of its remaining gap to ``d_s`` per step
+(Faverjon and Tournassoud's damper in discrete time). ``J(p)`` is the Jacobian of the body
+point ``p`` (world axes); the scene does not move. Both limits follow pink's ``Limit``
+interface (``G dq <= h``) and read the kinematics pink computed for the step.
+
+coal gives one witness pair per shape, so a foot rising along a riser sees only the riser,
+then only the tread once past the edge, and would slide into the corner between them. The
+scene limit therefore remembers each shape's recent witnesses (scene point, normal, body
+point in its joint's frame) for ``WITNESS_MEMORY`` steps and keeps a row for each: the
+half-spaces of the last few steps bound the shape together.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import coal
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+from pink.limits import Limit
+
+from planner.motion import tuning
+
+FloatArray = NDArray[np.float64]
+
+
+def point_jacobian(model: Any, data: Any, joint: int, point: FloatArray) -> FloatArray:
+    """(3, nv) Jacobian of the world velocity of the world ``point`` (3,) fixed to ``joint``;
+    needs ``computeJointJacobians`` at the current configuration."""
+    j = pin.getJointJacobian(model, data, joint, pin.LOCAL_WORLD_ALIGNED)
+    lever = point - data.oMi[joint].translation
+    skew = np.array(
+        [[0.0, -lever[2], lever[1]], [lever[2], 0.0, -lever[0]], [-lever[1], lever[0], 0.0]]
+    )
+    return np.asarray(j[:3] - skew @ j[3:], dtype=np.float64)
+
+
+def _damper_row(
+    normal: FloatArray, jacobian: FloatArray, distance: float, security: float
+) -> tuple[FloatArray, float]:
+    """One row of ``G dq <= h`` for ``n . J dq >= -rate (d - d_s)``, the demanded push capped."""
+    bound = tuning.DAMPER_RATE * (distance - security)
+    return -normal @ jacobian, max(bound, -tuning.MAX_PUSH)
+
+
+class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type information
+    """Body shapes kept out of the scene (a triangle BVH) and of static obstacles.
+
+    ``geometry`` is the character's pin.GeometryModel. ``set_phase`` says which shapes rest
+    on surfaces by design (stance effectors: skipped) and which may touch lightly (the swing
+    effector: ``SWING_SECURITY_DISTANCE``). ``obstacles`` are (coal geometry,
+    coal.Transform3s) pairs in the world.
+    """
+
+    def __init__(
+        self,
+        model: Any,
+        geometry: Any,
+        scene_bvh: Any,
+        obstacles: Sequence[tuple[Any, Any]] = (),
+    ) -> None:
+        self.model = model
+        self.geometry = geometry
+        self.geometry_data = pin.GeometryData(geometry)
+        self.targets: list[tuple[Any, Any]] = [(scene_bvh, coal.Transform3s()), *obstacles]
+        self.request = coal.DistanceRequest()
+        self.request.enable_signed_distance = True
+        self.result = coal.DistanceResult()
+        self.skipped: frozenset[int] = frozenset()
+        self.light: dict[int, float] = {}
+        self.rows = 0
+        # per shape: recent (step, scene point (3,), normal (3,), body point in joint frame)
+        self.memory: dict[int, list[tuple[int, FloatArray, FloatArray, FloatArray]]] = {}
+        self.steps = 0
+
+    def set_phase(self, skipped: frozenset[int], light: dict[int, float]) -> None:
+        """Shapes (geometry indices) not checked, and the security distance (m) of those
+        allowed to touch lightly; the witnesses of skipped shapes are forgotten."""
+        self.skipped, self.light = skipped, light
+        for i in skipped:
+            self.memory.pop(i, None)
+
+    def depths(self, data: Any, shapes: frozenset[int]) -> dict[int, float]:
+        """Signed distance (m) of each shape in ``shapes`` to the scene and obstacles, at the
+        kinematics of ``data``."""
+        pin.updateGeometryPlacements(self.model, data, self.geometry, self.geometry_data)
+        out = {}
+        for i in shapes:
+            obj = self.geometry.geometryObjects[i]
+            placement = self.geometry_data.oMg[i]
+            transform = coal.Transform3s(placement.rotation, placement.translation)
+            nearest = np.inf
+            for target, target_tf in self.targets:
+                self.result.clear()
+                d = coal.distance(
+                    target, target_tf, obj.geometry, transform, self.request, self.result
+                )
+                nearest = min(nearest, float(d))
+            out[i] = nearest
+        return out
+
+    def compute_qp_inequalities(
+        self, configuration: Any, dt: float
+    ) -> tuple[FloatArray, FloatArray] | None:
+        """``G dq <= h`` rows of the shapes within the influence distance (None if none)."""
+        model, data = self.model, configuration.data
+        pin.updateGeometryPlacements(model, data, self.geometry, self.geometry_data)
+        rows: list[FloatArray] = []
+        bounds: list[float] = []
+        self.steps += 1
+        oldest = self.steps - tuning.WITNESS_MEMORY
+        for i, obj in enumerate(self.geometry.geometryObjects):
+            if i in self.skipped:
+                continue
+            placement = self.geometry_data.oMg[i]
+            transform = coal.Transform3s(placement.rotation, placement.translation)
+            security = self.light.get(i, tuning.SECURITY_DISTANCE)
+            joint = int(obj.parentJoint)
+            frame = data.oMi[joint]
+            memory = [m for m in self.memory.get(i, []) if m[0] > oldest]
+            self.memory[i] = memory
+            for target, target_tf in self.targets:
+                self.result.clear()
+                d = coal.distance(
+                    target, target_tf, obj.geometry, transform, self.request, self.result
+                )
+                if d > tuning.INFLUENCE_DISTANCE:
+                    continue
+                point = np.array(self.result.getNearestPoint2())
+                normal = np.array(self.result.normal)
+                local = frame.actInv(point)
+                memory.append((self.steps, np.array(self.result.getNearestPoint1()), normal, local))
+            for _, scene_point, normal, local in memory:
+                point = frame.act(local)
+                d = float(normal @ (point - scene_point))
+                if d > tuning.INFLUENCE_DISTANCE:
+                    continue
+                jac = point_jacobian(model, data, joint, point)
+                row, bound = _damper_row(normal, jac, d, security)
+                rows.append(row)
+                bounds.append(bound)
+        self.rows = len(rows)
+        if not rows:
+            return None
+        return np.vstack(rows), np.asarray(bounds, dtype=np.float64)
+
+
+class SelfClearance(Limit):  # type: ignore[misc]
+    """Body shapes kept apart: the collision pairs declared in the character's geometry
+    model (adjacent links and pairs touching in the reference posture are not declared)."""
+
+    def __init__(self, model: Any, geometry: Any) -> None:
+        self.model = model
+        self.geometry = geometry
+        self.geometry_data = pin.GeometryData(geometry)
+        for request in self.geometry_data.distanceRequests:
+            request.enable_signed_distance = True
+        self.pairs = [(int(p.first), int(p.second)) for p in geometry.collisionPairs]
+        self.joints = [int(o.parentJoint) for o in geometry.geometryObjects]
+        self.rows = 0
+
+    def compute_qp_inequalities(
+        self, configuration: Any, dt: float
+    ) -> tuple[FloatArray, FloatArray] | None:
+        """``G dq <= h`` rows of the pairs within the influence distance (None if none)."""
+        model, data = self.model, configuration.data
+        pin.updateGeometryPlacements(model, data, self.geometry, self.geometry_data)
+        pin.computeDistances(self.geometry, self.geometry_data)
+        rows: list[FloatArray] = []
+        bounds: list[float] = []
+        for k, (a, b) in enumerate(self.pairs):
+            result = self.geometry_data.distanceResults[k]
+            d = float(result.min_distance)
+            if d > tuning.INFLUENCE_DISTANCE:
+                continue
+            normal = np.array(result.normal)
+            jac_a = point_jacobian(model, data, self.joints[a], np.array(result.getNearestPoint1()))
+            jac_b = point_jacobian(model, data, self.joints[b], np.array(result.getNearestPoint2()))
+            row, bound = _damper_row(normal, jac_b - jac_a, d, tuning.SECURITY_DISTANCE)
+            rows.append(row)
+            bounds.append(bound)
+        self.rows = len(rows)
+        if not rows:
+            return None
+        return np.vstack(rows), np.asarray(bounds, dtype=np.float64)

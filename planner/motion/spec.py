@@ -1,0 +1,83 @@
+"""A motion described as data: the input of :func:`planner.motion.build_motion`.
+
+Plans, Twister steps and jumps all say what the body does in the same terms: phases, each
+with the contacts it holds, the limb that swings from where to where (if any), the posture
+and trunk orientation it heads for; and one COM curve over the whole motion. All poses are
+world frame (4, 4), metres; times in seconds from the motion's start.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.character import Character
+
+if TYPE_CHECKING:  # annotations only: planner.contact imports planner.motion
+    from planner.contact.state import LimbContact
+    from trajectory import PiecewiseBezier
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class Swing:
+    """``limb`` moves its effector from ``start`` (4, 4) to ``end`` (4, 4) over its phase,
+    along an arc rising ``lift`` m along the contact normals (see ``swing_trajectory``)."""
+
+    limb: str
+    start: FloatArray
+    end: FloatArray
+    lift: float
+
+
+@dataclass(frozen=True, slots=True)
+class MotionPhase:
+    """[t0, t1] s with ``stance`` held throughout, at most one ``swing``.
+
+    posture : (nq,) the configuration the free joints are pulled toward (the state the phase
+    leads to); its root orientation is the trunk orientation aimed at (roll and pitch).
+    """
+
+    t0: float
+    t1: float
+    stance: tuple[LimbContact, ...]
+    posture: FloatArray
+    swing: Swing | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class MotionSpec:
+    """What to animate: from ``q_start`` (nq,) through ``phases`` (contiguous, in time
+    order), the COM following ``com`` over [phases[0].t0, phases[-1].t1], keyframes at
+    ``rate`` per second."""
+
+    q_start: FloatArray
+    phases: tuple[MotionPhase, ...]
+    com: PiecewiseBezier
+    rate: float = 30.0
+
+    def __post_init__(self) -> None:
+        if not self.phases:
+            raise ValueError("phases: at least one phase is needed")
+        if not self.rate > 0:
+            raise ValueError("rate must be positive")
+        for a, b in zip(self.phases, self.phases[1:], strict=False):
+            if abs(a.t1 - b.t0) > 1e-9 or b.t1 < b.t0:
+                raise ValueError("phases must be contiguous and in time order")
+
+
+def natural_posture(character: Character, q: FloatArray, keep: Sequence[str]) -> FloatArray:
+    """(nq,) posture to head for: ``q`` (nq,) for the root and the limbs in ``keep`` (those
+    in contact or swinging), the character's reference posture for every other joint (free
+    arms hang, the torso and neck straighten)."""
+    out = np.array(character.q_ref, dtype=np.float64)
+    out[:7] = q[:7]
+    for name in keep:
+        idx = character.limb(name).idx_q
+        out[idx] = q[idx]
+    return out

@@ -1,0 +1,221 @@
+"""Whole-body tracking as a constrained QP per control step (differential IK with pink).
+
+Each step solves, over the configuration step ``dq`` (tangent space),
+
+    min  sum of weighted task errors after the step  +  DAMPING |dq|^2
+    s.t. joint position limits, joint speeds <= min(URDF limit, MAX_JOINT_SPEED),
+         collision dampers against the scene and between body parts (``clearance``)
+
+with the tasks, by cost: stance contacts held (dominant), the COM on its curve, the swing
+effector on its arc, the trunk's roll and pitch at the planned orientation, and a posture
+pull toward the phase's planned configuration. The QP backend is daqp through qpsolvers.
+When the QP has no solution (a damper that cannot be met within the speed limits), the
+step is retried without the dampers, then skipped (the body holds still).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+from pink import Configuration, solve_ik
+from pink.exceptions import NoSolutionFound
+from pink.limits import ConfigurationLimit, VelocityLimit
+from pink.tasks import ComTask, FrameTask, PostureTask
+from scipy.spatial.transform import Rotation
+
+from planner.character import Character
+from planner.motion import tuning
+from planner.motion.clearance import SceneClearance, SelfClearance
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class StepTargets:
+    """What one control step aims at (world frame).
+
+    stance : (limb, effector pose (4, 4)) held. com : (3,) m. swing : (limb, pose (4, 4))
+    or None. posture : (nq,) pulled toward; its root orientation is the trunk target.
+    """
+
+    stance: tuple[tuple[str, FloatArray], ...]
+    com: FloatArray
+    swing: tuple[str, FloatArray] | None
+    posture: FloatArray
+
+
+def effector_geometries(character: Character) -> dict[str, frozenset[int]]:
+    """Per limb, the collision shapes (geometry indices) of its effector: those on the
+    effector frame's joint and its descendants (they touch the surface in contact)."""
+    model = character.model
+    out = {}
+    for limb in character.limbs:
+        joint = int(model.frames[limb.frame_id].parentJoint)
+        subtree = {joint}
+        for j in range(joint + 1, model.njoints):
+            if int(model.parents[j]) in subtree:
+                subtree.add(j)
+        out[limb.name] = frozenset(
+            i for i, o in enumerate(character.geometry.geometryObjects) if o.parentJoint in subtree
+        )
+    return out
+
+
+def speed_limits(model: Any) -> FloatArray:
+    """(nv,) rad/s: each joint's URDF velocity limit capped at ``MAX_JOINT_SPEED`` (joints
+    without a limit get the cap); the free-flyer root is left unbounded."""
+    limits = np.array(model.velocityLimit, dtype=np.float64)
+    root = int(model.joints[1].nv) if model.njoints > 1 and model.joints[1].nq == 7 else 0
+    joints = limits[root:]
+    joints[~(joints > 0)] = tuning.MAX_JOINT_SPEED
+    limits[root:] = np.minimum(joints, tuning.MAX_JOINT_SPEED)
+    return limits
+
+
+def _saturated(here: FloatArray, target: FloatArray, reach: float) -> FloatArray:
+    """``target`` (3,) moved toward ``here`` (3,) to at most ``reach`` m from it."""
+    gap = np.asarray(target, dtype=np.float64) - here
+    norm = float(np.linalg.norm(gap))
+    if norm <= reach:
+        return np.array(target, dtype=np.float64)
+    return np.asarray(here + gap * (reach / norm), dtype=np.float64)
+
+
+class WholeBodyTracker:
+    """One character in one scene; :meth:`step` moves a configuration one control step.
+
+    ``obstacles`` are (coal geometry, coal.Transform3s) pairs the body avoids besides the
+    scene (other characters). Not thread-safe: one per thread.
+    """
+
+    def __init__(
+        self,
+        character: Character,
+        scene_bvh: Any,
+        obstacles: Sequence[tuple[Any, Any]] = (),
+    ) -> None:
+        self.character = character
+        model = character.model
+        self.model = model
+        self.data = model.createData()
+        self.effectors = effector_geometries(character)
+        self.com_task = ComTask(cost=tuning.COM_COST, gain=tuning.TASK_GAIN)
+        root_frame = str(model.frames[1].name)
+        self.trunk_task = FrameTask(
+            root_frame,
+            position_cost=[0.0, 0.0, tuning.TRUNK_HEIGHT_COST],
+            orientation_cost=[tuning.TRUNK_COST, tuning.TRUNK_COST, 0.0],
+            gain=tuning.TRUNK_GAIN,
+        )
+        self.posture_task = PostureTask(cost=tuning.POSTURE_COST, gain=tuning.POSTURE_GAIN)
+        self.stance_tasks: dict[str, FrameTask] = {}
+        self.swing_tasks: dict[str, FrameTask] = {}
+        for limb in character.limbs:
+            patch = limb.contact == "patch"
+            self.stance_tasks[limb.name] = FrameTask(
+                limb.effector_frame,
+                position_cost=tuning.STANCE_COST,
+                orientation_cost=tuning.STANCE_COST if patch else 0.0,
+                gain=tuning.TASK_GAIN,
+            )
+            self.swing_tasks[limb.name] = FrameTask(
+                limb.effector_frame,
+                position_cost=tuning.SWING_POSITION_COST,
+                orientation_cost=tuning.SWING_ORIENTATION_COST if patch else 0.0,
+                gain=tuning.TASK_GAIN,
+            )
+        self.scene = SceneClearance(model, character.geometry, scene_bvh, obstacles)
+        self.self_clearance = SelfClearance(model, character.geometry)
+        self.limits = [
+            ConfigurationLimit(model),
+            VelocityLimit(model, speed_limits(model)),
+        ]
+        self.configuration = Configuration(model, self.data, pin.neutral(model), copy_data=False)
+        self.fallbacks = 0
+        self._lift_off: tuple[str, dict[int, float]] | None = None
+
+    def trunk_rotation(self, posture: FloatArray) -> FloatArray:
+        """(3, 3) trunk orientation aimed at from a planned configuration (nq,): its yaw,
+        and its pitch only for a character whose trunk may pitch (a hexapod on a slope);
+        never a roll."""
+        rotation = pin.Quaternion(posture[3:7]).toRotationMatrix()
+        yaw, pitch, _ = Rotation.from_matrix(rotation).as_euler("ZYX")
+        if self.character.max_pitch <= tuning.LEVEL_TRUNK_PITCH:
+            pitch = 0.0
+        return np.asarray(Rotation.from_euler("ZY", [yaw, pitch]).as_matrix(), dtype=np.float64)
+
+    def reset(self) -> None:
+        """Forget what earlier steps left (remembered witnesses, the lift-off depths): the
+        next step starts a fresh track."""
+        self.scene.memory.clear()
+        self._lift_off = None
+
+    def _swing_security(self, limb: str) -> dict[int, float]:
+        """Security distance (m) of each shape of the swinging ``limb``'s effector: never
+        deeper than where it lifted off (a real robot's foot capsule may hang under the sole
+        by design), nor than ``SWING_SECURITY_DISTANCE``; measured when the swing starts."""
+        if self._lift_off is None or self._lift_off[0] != limb:
+            depths = self.scene.depths(self.configuration.data, self.effectors[limb])
+            security = {
+                i: min(tuning.SWING_SECURITY_DISTANCE, d - tuning.SWING_SECURITY_MARGIN)
+                for i, d in depths.items()
+            }
+            self._lift_off = (limb, security)
+        return self._lift_off[1]
+
+    def step(self, q: FloatArray, targets: StepTargets, dt: float) -> FloatArray:
+        """The configuration (nq,) one control step of ``dt`` s after ``q`` (nq,)."""
+        config = self.configuration
+        config.update(q)
+        tasks: list[Any] = []
+        skipped: set[int] = set()
+        for limb, pose in targets.stance:
+            task = self.stance_tasks[limb]
+            task.set_target(pin.SE3(pose[:3, :3].copy(), pose[:3, 3].copy()))
+            tasks.append(task)
+            skipped |= self.effectors[limb]
+        light: dict[int, float] = {}
+        if targets.swing is not None:
+            limb, pose = targets.swing
+            task = self.swing_tasks[limb]
+            here = self.data.oMf[self.character.limb(limb).frame_id].translation
+            goal = _saturated(here, pose[:3, 3], tuning.SWING_MAX_ERROR)
+            task.set_target(pin.SE3(pose[:3, :3].copy(), goal))
+            tasks.append(task)
+            light = self._swing_security(limb)
+        else:
+            self._lift_off = None
+        com = pin.centerOfMass(self.model, self.data, q, False)
+        goal = _saturated(com, np.asarray(targets.com, dtype=np.float64), tuning.COM_MAX_ERROR)
+        self.com_task.set_target(goal)
+        tasks.append(self.com_task)
+        posture = np.asarray(targets.posture, dtype=np.float64)
+        self.trunk_task.set_target(pin.SE3(self.trunk_rotation(posture), posture[:3].copy()))
+        tasks.append(self.trunk_task)
+        self.posture_task.set_target(posture)
+        tasks.append(self.posture_task)
+        self.scene.set_phase(frozenset(skipped), light)
+        for limits in (
+            [*self.limits, self.scene, self.self_clearance],
+            self.limits,
+        ):
+            try:
+                velocity = solve_ik(
+                    config,
+                    tasks,
+                    dt,
+                    solver=tuning.QP_SOLVER,
+                    damping=tuning.DAMPING,
+                    limits=limits,
+                    safety_break=False,
+                )
+            except NoSolutionFound:
+                self.fallbacks += 1
+                continue
+            return np.asarray(pin.integrate(self.model, q, velocity * dt), dtype=np.float64)
+        return np.array(q, dtype=np.float64)

@@ -1,0 +1,111 @@
+"""Every tuning value of whole-body motion, named and explained in one place.
+
+Units: metres, seconds, radians; costs are pink's normalised task costs (a cost ``c`` on a
+task makes an error ``e`` weigh ``c * e`` in the least squares, so a stance cost 100 times the
+COM cost lets the COM pull a contact off by a hundredth of its own error at most).
+"""
+
+from __future__ import annotations
+
+# --- control loop -------------------------------------------------------------------------
+SUBSTEPS = 2
+"""Control steps per keyframe period: at 30 keyframes per second the QP runs at 60 Hz."""
+
+MAX_JOINT_SPEED = 10.0
+"""rad/s, cap on every joint's speed on top of the URDF's own velocity limit."""
+
+QP_SOLVER = "daqp"
+"""Backend of qpsolvers for the per-step QP (measured: about 0.1 ms for the humanoid)."""
+
+DAMPING = 1e-4
+"""Tikhonov weight on the step itself: keeps the QP strictly convex, damps idle dofs."""
+
+# --- task costs -----------------------------------------------------------------------------
+STANCE_COST = 100.0
+"""Stance contacts: dominant, so the COM and the swing never drag a held contact."""
+
+COM_COST = 10.0
+"""Centre of mass following its curve."""
+
+SWING_POSITION_COST = 20.0
+"""The swinging effector following its arc."""
+
+SWING_ORIENTATION_COST = 5.0
+"""A swinging patch (sole, palm) turning toward its landing orientation (per rad)."""
+
+TRUNK_COST = 2.0
+"""Root roll and pitch held at the planned trunk orientation (yaw left free)."""
+
+TRUNK_HEIGHT_COST = 5.0
+"""Root height (along the trunk's own z axis) pulled toward the planned state's: the COM
+alone leaves the body free to crouch and fold; the planned states say how tall it stands."""
+
+POSTURE_COST = 1.0
+"""Joints pulled toward the phase's planned posture: arms hang naturally, knees unfold."""
+
+LEVEL_TRUNK_PITCH = 0.05
+"""rad: a character allowed at most this pitch (``max_pitch``) keeps its trunk level; one
+allowed more (the hexapod) aims at the pitch of the planned states."""
+
+SWING_MAX_ERROR = 0.06
+"""m: a swing target further than this from the effector is pulled in to this distance, so
+that a swing held back by an obstacle never outweighs the stance contacts."""
+
+COM_MAX_ERROR = 0.03
+"""m: the same saturation for the COM target."""
+
+TRUNK_GAIN = 0.2
+"""The trunk turns toward its target orientation gently (a fifth of the error per step)."""
+
+TASK_GAIN = 1.0
+"""Fraction of a task's error corrected per control step (1: dead-beat)."""
+
+POSTURE_GAIN = 0.2
+"""The posture converges gently: a low-pass on the free limbs."""
+
+# --- collision avoidance (velocity damper, Faverjon-Tournassoud form) ---------------------
+INFLUENCE_DISTANCE = 0.05
+"""m, pairs closer than this get a constraint."""
+
+SECURITY_DISTANCE = 0.005
+"""m, the gap a pair may not close below (the damper's d_s)."""
+
+SWING_SECURITY_DISTANCE = -0.004
+"""m, d_s of the swinging effector against the scene: it starts and ends on a surface."""
+
+SWING_SECURITY_MARGIN = 0.002
+"""m: a swinging effector's shape may go this much deeper than it was at lift-off."""
+
+DAMPER_RATE = 0.5
+"""Fraction of the remaining gap (d - d_s) a pair may close in one control step."""
+
+WITNESS_MEMORY = 6
+"""Control steps a witness pair is remembered (0.1 s at 60 Hz): coal gives one pair per shape
+and step, and a shape by an edge needs the faces on both sides; older half-spaces would fence
+the body out of places it has since walked past."""
+
+MAX_PUSH = 0.01
+"""m per control step, the most a constraint may demand to move a pair apart (a shape
+already deeper than d_s is pushed out at most this fast)."""
+
+# --- acceptance (the keyframe checker) -----------------------------------------------------
+PENETRATION_TOLERANCE = 0.005
+"""m, a non-stance link deeper than this inside the scene makes a keyframe collide."""
+
+SELF_PENETRATION_TOLERANCE = 0.005
+"""m, two body parts deeper than this into each other make a keyframe collide."""
+
+HOLD_TOLERANCE = 0.005
+"""m, a stance contact further than this from where it was placed has slipped."""
+
+# --- swing ------------------------------------------------------------------------------------
+SWING_LIFTS = (0.08, 0.16, 0.24)
+"""m, swing arc heights above the chord, tried in turn when the lower one collides or does
+not land."""
+
+MISSED_LANDING_WEIGHT = 30
+"""A missed landing (a foot that then slides to its contact) counts as this many colliding
+keyframes when attempts are compared."""
+
+LANDING_TOLERANCE = 0.02
+"""m: a swing whose effector ends further than this from its arc's end has not landed."""
