@@ -119,6 +119,7 @@ class _Targets:
         self.spec = spec
         self.breaks = np.array([p.t1 for p in spec.phases])
         self.lifts: dict[int, float] = {}
+        self.unguarded: set[int] = set()
         self._arcs: dict[tuple[int, float], Any] = {}
 
     def phase_index(self, t: float) -> int:
@@ -151,7 +152,7 @@ class _Targets:
         if arc is not None and phase.swing is not None:
             swing = (phase.swing.limb, np.asarray(arc(t), dtype=np.float64))
         stance = tuple((c.limb, np.asarray(c.placement)) for c in phase.stance)
-        return StepTargets(stance, com, swing, phase.posture)
+        return StepTargets(stance, com, swing, phase.posture, k not in self.unguarded)
 
 
 @dataclass(slots=True)
@@ -246,22 +247,30 @@ def build_motion(
     for times in groups:
         k = targets.phase_index(times[0])
         swing = spec.phases[k].swing
-        lifts = [swing.lift, *(x for x in tuning.SWING_LIFTS if x > swing.lift)] if swing else [0.0]
+        attempts = [(0.0, True)]
+        if swing is not None:
+            lifts = [swing.lift, *(x for x in tuning.SWING_LIFTS if x > swing.lift)]
+            # last resort: the highest arc with the swinging effector unguarded
+            attempts = [*((x, True) for x in lifts), (lifts[-1], False)]
         best: _Segment | None = None
-        for attempt, lift in enumerate(lifts):
-            if attempt:
+        best_attempt = attempts[0]
+        for n, (lift, guarded) in enumerate(attempts):
+            if n:
                 retried += 1
                 targets.lifts[k] = lift
+                if not guarded:
+                    targets.unguarded.add(k)
             tracker.reset()
             segment = _track_segment(tracker, checker, targets, q, times, previous, until)
             if best is None or segment.score < best.score:
-                best = segment
-                best_lift = lift
+                best, best_attempt = segment, (lift, guarded)
             if best.score[0] == 0 or segment.cut_short:
                 break
         assert best is not None
         if swing is not None:
-            targets.lifts[k] = best_lift
+            targets.lifts[k] = best_attempt[0]
+            if best_attempt[1]:
+                targets.unguarded.discard(k)
         segments.append(best)
         q = best.q
         previous = times[-1]

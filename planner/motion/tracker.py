@@ -41,12 +41,15 @@ class StepTargets:
 
     stance : (limb, effector pose (4, 4)) held. com : (3,) m. swing : (limb, pose (4, 4))
     or None. posture : (nq,) pulled toward; its root orientation is the trunk target.
+    swing_guarded : whether the swinging effector's own shapes are kept off the scene (a last
+    resort lets a swing that cannot land otherwise through: the checker still counts it).
     """
 
     stance: tuple[tuple[str, FloatArray], ...]
     com: FloatArray
     swing: tuple[str, FloatArray] | None
     posture: FloatArray
+    swing_guarded: bool = True
 
 
 def effector_geometries(character: Character) -> dict[str, frozenset[int]]:
@@ -187,7 +190,10 @@ class WholeBodyTracker:
             goal = _saturated(here, pose[:3, 3], tuning.SWING_MAX_ERROR)
             task.set_target(pin.SE3(pose[:3, :3].copy(), goal))
             tasks.append(task)
-            light = self._swing_security(limb)
+            if targets.swing_guarded:
+                light = self._swing_security(limb)
+            else:
+                skipped |= self.effectors[limb]
         else:
             self._lift_off = None
         com = pin.centerOfMass(self.model, self.data, q, False)
