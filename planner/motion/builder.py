@@ -173,6 +173,14 @@ class _Segment:
         return sum(c.colliding for c in self.checks) + tuning.MISSED_LANDING_WEIGHT * missed, missed
 
 
+def _swing_at_fault(segment: _Segment, shapes: frozenset[str]) -> bool:
+    """Whether the swinging limb (its collision ``shapes``) is what went wrong in
+    ``segment``: it missed its landing, or one of its shapes is the deepest in a colliding
+    keyframe."""
+    missed = segment.landing_error > tuning.LANDING_TOLERANCE
+    return missed or any(c.colliding and c.shape in shapes for c in segment.checks)
+
+
 def _track_segment(
     tracker: WholeBodyTracker,
     checker: KeyframeChecker,
@@ -240,6 +248,13 @@ def build_motion(
             groups[-1].append(t)
         else:
             groups.append([t])
+    objects = list(character.geometry.geometryObjects)
+    limb_shapes = {
+        limb.name: frozenset(
+            str(o.name) for o in objects if int(o.parentJoint) in set(limb.joint_ids.tolist())
+        )
+        for limb in character.limbs
+    }
     q = np.array(spec.q_start, dtype=np.float64)
     segments: list[_Segment] = []
     previous: float | None = None
@@ -266,6 +281,8 @@ def build_motion(
                 best, best_attempt = segment, (lift, guarded)
             if best.score[0] == 0 or segment.cut_short:
                 break
+            if swing is not None and not _swing_at_fault(segment, limb_shapes[swing.limb]):
+                break  # what collides is not the swinging limb: a higher arc cannot help
         assert best is not None
         if swing is not None:
             targets.lifts[k] = best_attempt[0]

@@ -166,7 +166,17 @@ class SelfClearance(Limit):  # type: ignore[misc]
         for request in self.geometry_data.distanceRequests:
             request.enable_signed_distance = True
         self.pairs = [(int(p.first), int(p.second)) for p in geometry.collisionPairs]
+        self.pair_array = np.array(self.pairs, dtype=np.int64).reshape(-1, 2)
         self.joints = [int(o.parentJoint) for o in geometry.geometryObjects]
+        # bounding sphere of each shape (centre in the shape's frame, radius)
+        self.centres = []
+        radii = []
+        for obj in geometry.geometryObjects:
+            obj.geometry.computeLocalAABB()
+            self.centres.append(np.array(obj.geometry.aabb_center, dtype=np.float64))
+            radii.append(float(obj.geometry.aabb_radius))
+        r = np.array(radii)
+        self.radii_sum = r[self.pair_array[:, 0]] + r[self.pair_array[:, 1]]
         self.rows = 0
 
     def compute_qp_inequalities(
@@ -175,10 +185,21 @@ class SelfClearance(Limit):  # type: ignore[misc]
         """``G dq <= h`` rows of the pairs within the influence distance (None if none)."""
         model, data = self.model, configuration.data
         pin.updateGeometryPlacements(model, data, self.geometry, self.geometry_data)
-        pin.computeDistances(self.geometry, self.geometry_data)
+        # broad phase: bounding spheres farther apart than the influence distance are skipped
+        centres = np.array(
+            [
+                self.geometry_data.oMg[i].act(self.centres[i])
+                for i in range(len(self.geometry.geometryObjects))
+            ]
+        )
+        a_idx, b_idx = self.pair_array[:, 0], self.pair_array[:, 1]
+        gaps = np.linalg.norm(centres[a_idx] - centres[b_idx], axis=1) - self.radii_sum
+        near = np.flatnonzero(gaps <= tuning.INFLUENCE_DISTANCE)
         rows: list[FloatArray] = []
         bounds: list[float] = []
-        for k, (a, b) in enumerate(self.pairs):
+        for k in near.tolist():
+            a, b = self.pairs[k]
+            pin.computeDistance(self.geometry, self.geometry_data, k)
             result = self.geometry_data.distanceResults[k]
             d = float(result.min_distance)
             if d > tuning.INFLUENCE_DISTANCE:

@@ -141,16 +141,30 @@ class WholeBodyTracker:
         self.configuration = Configuration(model, self.data, pin.neutral(model), copy_data=False)
         self.fallbacks = 0
         self._lift_off: tuple[str, dict[int, float]] | None = None
+        self._trunk_cache: dict[bytes, FloatArray] = {}
+        root_nq = 7 if model.joints[1].nq == 7 else 0
+        self._bounded = np.arange(root_nq, model.nq)
+        self._lower = np.asarray(model.lowerPositionLimit[root_nq:], dtype=np.float64)
+        self._upper = np.asarray(model.upperPositionLimit[root_nq:], dtype=np.float64)
 
     def trunk_rotation(self, posture: FloatArray) -> FloatArray:
         """(3, 3) trunk orientation aimed at from a planned configuration (nq,): its yaw,
         and its pitch only for a character whose trunk may pitch (a hexapod on a slope);
-        never a roll."""
-        rotation = pin.Quaternion(posture[3:7]).toRotationMatrix()
-        yaw, pitch, _ = Rotation.from_matrix(rotation).as_euler("ZYX")
-        if self.character.max_pitch <= tuning.LEVEL_TRUNK_PITCH:
-            pitch = 0.0
-        return np.asarray(Rotation.from_euler("ZY", [yaw, pitch]).as_matrix(), dtype=np.float64)
+        never a roll. Memoised per posture (a phase keeps its posture for many steps)."""
+        key = posture[3:7].tobytes()
+        cached = self._trunk_cache.get(key)
+        if cached is None:
+            rotation = pin.Quaternion(posture[3:7]).toRotationMatrix()
+            yaw, pitch, _ = Rotation.from_matrix(rotation).as_euler("ZYX")
+            if self.character.max_pitch <= tuning.LEVEL_TRUNK_PITCH:
+                pitch = 0.0
+            cached = np.asarray(
+                Rotation.from_euler("ZY", [yaw, pitch]).as_matrix(), dtype=np.float64
+            )
+            if len(self._trunk_cache) > 4096:
+                self._trunk_cache.clear()
+            self._trunk_cache[key] = cached
+        return cached
 
     def reset(self) -> None:
         """Forget what earlier steps left (remembered witnesses, the lift-off depths): the
@@ -174,6 +188,8 @@ class WholeBodyTracker:
     def step(self, q: FloatArray, targets: StepTargets, dt: float) -> FloatArray:
         """The configuration (nq,) one control step of ``dt`` s after ``q`` (nq,)."""
         config = self.configuration
+        q = np.array(q, dtype=np.float64)
+        q[self._bounded] = np.clip(q[self._bounded], self._lower, self._upper)
         config.update(q)
         tasks: list[Any] = []
         skipped: set[int] = set()
