@@ -1,0 +1,325 @@
+"""Motion-quality benchmark: the keyframes of every reference scenario through the independent
+auditor (``tests/motion_audit.py``), per scenario over seeds.
+
+Usage: ``python bench/motion.py [--seeds 20] [--scenario NAME ...] [--twister] [--jumps]``.
+Plans are the JSON files of ``tests/scenarios/plans/`` (seed = the scenario's seed + i);
+``--twister`` adds the games of ``tests/scenarios/twister/`` (every successful move audited),
+``--jumps`` the scenarios of ``tests/scenarios/jumps/`` (root jumps not counted in flights).
+Prints, asserts nothing. Figures (motion-quality.md): success (SOLVED fraction; Twister: moves
+ok), frames with a non-stance link > 1 cm inside the scene ("pen"), the worst such depth and
+link, frames with a stance link > 1 cm inside the scene more than 5 cm from its contact points
+("far"), stance effector distance from its contact (max, mm), frames with self-collision > 1 cm,
+keyframe pairs with a joint over 10 rad/s or its URDF limit (and the fastest), root jumps
+> 5 cm per 30 Hz step per run, keyframe COM vs COM curve (p99, mm), root tilt (max, deg),
+phases animated, pace (m/s), frames with a still COM (< 1 cm/s), seconds of computation per
+second of animation (median), seconds of auditing per run (median).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import statistics
+import sys
+import tempfile
+import time
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != ROOT / "bench"]
+sys.path.insert(0, str(ROOT))
+
+from planner.character import get_character  # noqa: E402
+from planner.contact.planner import plan_contact_motion  # noqa: E402
+from planner.offline import load_offline_data  # noqa: E402
+from tests.motion_audit import MotionAudit, audit_from_domain  # noqa: E402
+from tests.paths import gecko_cache_dir  # noqa: E402
+from tests.scenarios.plans.test_plans import (  # noqa: E402
+    scenario_endpoint,
+    scenario_options,
+    scenario_scene,
+)
+
+PLANS = ROOT / "tests" / "scenarios" / "plans"
+TWISTER = ROOT / "tests" / "scenarios" / "twister"
+TARGETS = (
+    "targets (issue 12): penetrating, self-collision, pops and root jumps 0 beside every "
+    "scenario; COM p99 <= 20 mm; tilt <= 30 deg on walks and stairs; every phase animated; "
+    "success no lower than today's; <= 0.2 s of computation per animation second"
+)
+
+
+@dataclass
+class Tally:
+    """Figures pooled over the runs (and moves) of one scenario."""
+
+    runs: int = 0
+    solved: int = 0
+    frames: int = 0
+    pairs: int = 0
+    penetrating: int = 0
+    stance_far: int = 0
+    worst_pen: float = 0.0
+    worst_link: str = ""
+    stance_error: float = math.nan
+    self_frames: int = 0
+    pops: int = 0
+    max_speed: float = 0.0
+    root_jumps: int = 0
+    com_errors: list[float] = field(default_factory=list)
+    tilt: float = math.nan
+    coverage: list[float] = field(default_factory=list)
+    pace: list[float] = field(default_factory=list)
+    still: float = 0.0
+    cost: list[float] = field(default_factory=list)
+    audit_s: list[float] = field(default_factory=list)
+    notes: set[str] = field(default_factory=set)
+
+    def add(self, audit: MotionAudit) -> None:
+        self.frames += audit.frames
+        self.pairs += audit.pairs
+        self.penetrating += audit.penetrating_frames
+        self.stance_far += audit.stance_penetrating_frames
+        if audit.worst_penetration_m > self.worst_pen:
+            self.worst_pen, self.worst_link = (
+                audit.worst_penetration_m,
+                audit.worst_penetration_link,
+            )
+        if math.isfinite(audit.stance_contact_error_m):
+            self.stance_error = float(np.nanmax([self.stance_error, audit.stance_contact_error_m]))
+        self.self_frames += audit.self_collision_frames
+        self.pops += audit.pops
+        self.max_speed = max(self.max_speed, audit.max_joint_speed)
+        self.root_jumps += audit.root_jumps
+        self.com_errors.extend(float(e) for e in audit.com_error if math.isfinite(e))
+        if audit.frames:
+            self.tilt = float(np.nanmax([self.tilt, audit.tilt_max_deg]))
+        if math.isfinite(audit.coverage):
+            self.coverage.append(audit.coverage)
+        if math.isfinite(audit.pace_m_per_s):
+            self.pace.append(audit.pace_m_per_s)
+        if math.isfinite(audit.still_com_fraction):
+            self.still += audit.still_com_fraction * audit.frames
+        self.notes.update(audit.notes)
+
+    def row(self, name: str) -> str:
+        def pct(count: float, total: int) -> str:
+            return f"{count / total:6.1%}" if total else f"{'-':>6s}"
+
+        def med(values: list[float], fmt: str) -> str:
+            return format(statistics.median(values), fmt) if values else "-"
+
+        p99 = f"{1e3 * np.percentile(self.com_errors, 99):.0f}" if self.com_errors else "-"
+        link = self.worst_link if len(self.worst_link) <= 20 else self.worst_link[:19] + "~"
+        worst = f"{1e3 * self.worst_pen:.0f} {link}" if self.worst_pen > 0 else "-"
+        stance = f"{1e3 * self.stance_error:.1f}" if math.isfinite(self.stance_error) else "-"
+        cover = f"{statistics.mean(self.coverage):.0%}" if self.coverage else "-"
+        tilt = f"{self.tilt:.0f}" if math.isfinite(self.tilt) else "-"
+        jumps = f"{self.root_jumps / max(1, self.runs):.1f}"
+        return (
+            f"{name:32s} {pct(self.solved, self.runs):>6s} {pct(self.penetrating, self.frames)} "
+            f"{worst:>24s} {pct(self.stance_far, self.frames)} {stance:>7s} "
+            f"{pct(self.self_frames, self.frames)} "
+            f"{pct(self.pops, self.pairs)} {self.max_speed:6.1f} {jumps:>6s} {p99:>6s} "
+            f"{tilt:>5s} {cover:>5s} {med(self.pace, '.3f'):>6s} "
+            f"{pct(self.still, self.frames)} {med(self.cost, '.3f'):>6s} "
+            f"{med(self.audit_s, '.1f'):>6s}"
+        )
+
+
+HEADER = (
+    f"{'scenario':32s} {'ok':>6s} {'pen':>6s} {'worst mm (link)':>24s} {'far':>6s} "
+    f"{'stance':>7s} "
+    f"{'self':>6s} {'pops':>6s} {'rad/s':>6s} {'jumps':>6s} {'COM99':>6s} {'tilt':>5s} "
+    f"{'cover':>5s} {'pace':>6s} {'still':>6s} {'s/s':>6s} {'aud s':>6s}"
+)
+
+
+def _duration(keyframes: Any) -> float:
+    return float(keyframes[-1].t - keyframes[0].t) if len(keyframes) >= 2 else 0.0
+
+
+def _audit(tally: Tally, *args: Any, **kwargs: Any) -> None:
+    start = time.perf_counter()
+    audit = audit_from_domain(*args, **kwargs)
+    tally.audit_s.append(time.perf_counter() - start)
+    tally.add(audit)
+
+
+def bench_plans(files: Iterable[Path], seeds: int) -> None:
+    for file in files:
+        spec = json.loads(file.read_text())
+        scene = scenario_scene(spec)
+        if scene is None:
+            print(f"{file.stem:32s} skipped: scene not installed", flush=True)
+            continue
+        character = get_character(spec["character"])
+        data = load_offline_data(character, gecko_cache_dir())
+        tally = Tally()
+        wall = time.perf_counter()
+        for i in range(seeds):
+            start = time.perf_counter()
+            result = plan_contact_motion(
+                scene,
+                character,
+                data,
+                scenario_endpoint(spec["start"]),
+                scenario_endpoint(spec["goal"]),
+                rng=np.random.default_rng(int(spec["seed"]) + i),
+                time_budget_s=float(spec["time_budget_s"]),
+                options=scenario_options(spec),
+            )
+            seconds = time.perf_counter() - start
+            tally.runs += 1
+            tally.solved += result.status.value == "SOLVED"
+            plan = result.value
+            motion = None if plan is None else plan.motion
+            if motion is None or not motion.keyframes:
+                continue
+            duration = _duration(motion.keyframes)
+            if duration > 0:
+                tally.cost.append(seconds / duration)
+            _audit(tally, spec["character"], scene, motion.keyframes, motion.phases, motion.com)
+        print(f"{tally.row(file.stem)}  [{time.perf_counter() - wall:.0f} s]", flush=True)
+        for note in sorted(tally.notes):
+            print(f"{'':32s} note: {note}")
+
+
+def bench_twister(seeds: int) -> None:
+    from tests.planner.contact.twister_game import play
+
+    for file in sorted(TWISTER.glob("*.json")):
+        spec = json.loads(file.read_text())
+        tally = Tally()
+        wall = time.perf_counter()
+        for i in range(seeds):
+            game = dict(spec, seed=int(spec["seed"]) + i)
+            with tempfile.TemporaryDirectory() as folder:
+                path = Path(folder) / file.name
+                path.write_text(json.dumps(game))
+                moves = play(path)
+            tally.runs += 1
+            tally.solved += sum(m.result.ok for m in moves) / max(1, len(moves))
+            compute = sum(m.result.timings.get("total", 0.0) for m in moves)
+            animated = 0.0
+            for move in moves:
+                result = move.result
+                if not result.ok or not result.keyframes:
+                    continue
+                animated += _duration(result.keyframes)
+                _audit(
+                    tally,
+                    move.ctx.character.id,
+                    move.ctx.scene,
+                    result.keyframes,
+                    result.phases,
+                    result.com,
+                )
+            if animated > 0:
+                tally.cost.append(compute / animated)
+        label = f"twister {file.stem}"
+        print(f"{tally.row(label)}  [{time.perf_counter() - wall:.0f} s]", flush=True)
+
+
+def bench_jumps(seeds: int) -> None:
+    from planner.ballistic.planner import plan_jumps
+    from tests.scenarios.jumps.scenario import scenarios
+
+    for scenario in scenarios():
+        loaded = scenario.load()
+        label = f"jump {scenario.name}"
+        if loaded is None:
+            print(f"{label:32s} skipped: scene not installed", flush=True)
+            continue
+        scene, character, data = loaded
+        tally = Tally()
+        wall = time.perf_counter()
+        for i in range(seeds):
+            start = time.perf_counter()
+            result = plan_jumps(
+                scene,
+                character,
+                data,
+                scenario.end("start"),
+                scenario.end("goal"),
+                rng=np.random.default_rng(scenario.seed + i),
+                params=scenario.params(),
+            )
+            seconds = time.perf_counter() - start
+            tally.runs += 1
+            tally.solved += result.status.value == "SOLVED"
+            plan = result.value
+            if plan is None or not plan.keyframes:
+                continue
+            duration = _duration(plan.keyframes)
+            if duration > 0:
+                tally.cost.append(seconds / duration)
+            flights = [(j.contact_break, j.contact_create) for j in plan.jumps]
+            _audit(
+                tally,
+                character.id,
+                scene,
+                plan.keyframes,
+                _jump_phases(plan),
+                (),
+                flights,
+            )
+        print(f"{tally.row(label)}  [{time.perf_counter() - wall:.0f} s]", flush=True)
+
+
+@dataclass(frozen=True)
+class _Contact:
+    limb: str
+    points: Any
+
+
+@dataclass(frozen=True)
+class _Phase:
+    t0: float
+    t1: float
+    contacts: tuple[_Contact, ...]
+
+
+def _jump_phases(plan: Any) -> list[_Phase]:
+    """Stance phases of a jump plan: before each takeoff (its contacts) and after the last
+    landing (its contacts), each contact one point."""
+    phases = []
+    t = float(plan.keyframes[0].t)
+    for jump in plan.jumps:
+        contacts = tuple(_Contact(c.limb, np.asarray(c.point)[None]) for c in jump.takeoff.contacts)
+        phases.append(_Phase(t, float(jump.contact_break), contacts))
+        t = float(jump.contact_create)
+    if plan.jumps:
+        last = plan.jumps[-1].landing.contacts
+        contacts = tuple(_Contact(c.limb, np.asarray(c.point)[None]) for c in last)
+        phases.append(_Phase(t, float(plan.keyframes[-1].t), contacts))
+    return phases
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=20)
+    parser.add_argument("--scenario", action="append", default=[])
+    parser.add_argument("--twister", action="store_true", help="also the Twister games")
+    parser.add_argument("--jumps", action="store_true", help="also the jump scenarios")
+    args = parser.parse_args()
+    files = sorted(PLANS.glob("*.json"))
+    if args.scenario:
+        files = [f for f in files if f.stem in args.scenario]
+    print(TARGETS)
+    print(HEADER, flush=True)
+    bench_plans(files, args.seeds)
+    if args.twister:
+        bench_twister(args.seeds)
+    if args.jumps:
+        bench_jumps(args.seeds)
+
+
+if __name__ == "__main__":
+    main()
