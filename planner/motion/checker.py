@@ -12,13 +12,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-import coal
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
 from planner.character import Character
 from planner.motion import tuning
+from planner.motion.clearance import SceneDistances
 from planner.motion.tracker import effector_geometries
 
 if TYPE_CHECKING:
@@ -66,11 +66,8 @@ class KeyframeChecker:
         self.geometry_data = pin.GeometryData(self.geometry)
         for request in self.geometry_data.distanceRequests:
             request.enable_signed_distance = True
-        self.targets: list[tuple[Any, Any]] = [(scene_bvh, coal.Transform3s()), *obstacles]
+        self.distances = SceneDistances(scene_bvh, obstacles)
         self.effectors = effector_geometries(character)
-        self.request = coal.DistanceRequest()
-        self.request.enable_signed_distance = True
-        self.result = coal.DistanceResult()
 
     def check(self, q: FloatArray, stance: Sequence[LimbContact]) -> KeyframeCheck:
         """The check of configuration ``q`` (nq,) holding ``stance``."""
@@ -89,15 +86,9 @@ class KeyframeChecker:
         for i, obj in enumerate(self.geometry.geometryObjects):
             if i in skipped:
                 continue
-            placement = self.geometry_data.oMg[i]
-            transform = coal.Transform3s(placement.rotation, placement.translation)
-            for target, target_tf in self.targets:
-                self.result.clear()
-                d = coal.distance(
-                    target, target_tf, obj.geometry, transform, self.request, self.result
-                )
-                if -d > deepest:
-                    deepest, shape = -float(d), str(obj.name)
+            d = self.distances.nearest(obj.geometry, self.geometry_data.oMg[i])
+            if -d > deepest:
+                deepest, shape = -d, str(obj.name)
         pin.computeDistances(self.geometry, self.geometry_data)
         self_depth = 0.0
         for result in self.geometry_data.distanceResults:

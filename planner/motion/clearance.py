@@ -20,7 +20,7 @@ half-spaces of the last few steps bound the shape together.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 import coal
@@ -53,6 +53,31 @@ def _damper_row(
     return -normal @ jacobian, max(bound, -tuning.MAX_PUSH)
 
 
+class SceneDistances:
+    """Signed distances (m, negative inside) of body shapes to the scene (a triangle BVH)
+    and static obstacles ((coal geometry, coal.Transform3s) pairs). Not thread-safe."""
+
+    def __init__(self, scene_bvh: Any, obstacles: Sequence[tuple[Any, Any]] = ()) -> None:
+        self.targets: list[tuple[Any, Any]] = [(scene_bvh, coal.Transform3s()), *obstacles]
+        self.request = coal.DistanceRequest()
+        self.request.enable_signed_distance = True
+        self.result = coal.DistanceResult()
+
+    def each(self, geometry: Any, placement: Any) -> Iterator[tuple[float, Any]]:
+        """Per target, the distance of ``geometry`` at ``placement`` (pin.SE3) and coal's
+        result (witness points, normal from the target to the shape); the result is reused,
+        read it before the next item."""
+        transform = coal.Transform3s(placement.rotation, placement.translation)
+        for target, target_tf in self.targets:
+            self.result.clear()
+            d = coal.distance(target, target_tf, geometry, transform, self.request, self.result)
+            yield float(d), self.result
+
+    def nearest(self, geometry: Any, placement: Any) -> float:
+        """The smallest signed distance of ``geometry`` at ``placement`` to any target."""
+        return min(d for d, _ in self.each(geometry, placement))
+
+
 class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type information
     """Body shapes kept out of the scene (a triangle BVH) and of static obstacles.
 
@@ -72,10 +97,7 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
         self.model = model
         self.geometry = geometry
         self.geometry_data = pin.GeometryData(geometry)
-        self.targets: list[tuple[Any, Any]] = [(scene_bvh, coal.Transform3s()), *obstacles]
-        self.request = coal.DistanceRequest()
-        self.request.enable_signed_distance = True
-        self.result = coal.DistanceResult()
+        self.distances = SceneDistances(scene_bvh, obstacles)
         self.skipped: frozenset[int] = frozenset()
         self.light: dict[int, float] = {}
         self.rows = 0
@@ -94,20 +116,12 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
         """Signed distance (m) of each shape in ``shapes`` to the scene and obstacles, at the
         kinematics of ``data``."""
         pin.updateGeometryPlacements(self.model, data, self.geometry, self.geometry_data)
-        out = {}
-        for i in shapes:
-            obj = self.geometry.geometryObjects[i]
-            placement = self.geometry_data.oMg[i]
-            transform = coal.Transform3s(placement.rotation, placement.translation)
-            nearest = np.inf
-            for target, target_tf in self.targets:
-                self.result.clear()
-                d = coal.distance(
-                    target, target_tf, obj.geometry, transform, self.request, self.result
-                )
-                nearest = min(nearest, float(d))
-            out[i] = nearest
-        return out
+        return {
+            i: self.distances.nearest(
+                self.geometry.geometryObjects[i].geometry, self.geometry_data.oMg[i]
+            )
+            for i in shapes
+        }
 
     def compute_qp_inequalities(
         self, configuration: Any, dt: float
@@ -122,24 +136,17 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
         for i, obj in enumerate(self.geometry.geometryObjects):
             if i in self.skipped:
                 continue
-            placement = self.geometry_data.oMg[i]
-            transform = coal.Transform3s(placement.rotation, placement.translation)
             security = self.light.get(i, tuning.SECURITY_DISTANCE)
             joint = int(obj.parentJoint)
             frame = data.oMi[joint]
             memory = [m for m in self.memory.get(i, []) if m[0] > oldest]
             self.memory[i] = memory
-            for target, target_tf in self.targets:
-                self.result.clear()
-                d = coal.distance(
-                    target, target_tf, obj.geometry, transform, self.request, self.result
-                )
+            for d, result in self.distances.each(obj.geometry, self.geometry_data.oMg[i]):
                 if d > tuning.INFLUENCE_DISTANCE:
                     continue
-                point = np.array(self.result.getNearestPoint2())
-                normal = np.array(self.result.normal)
-                local = frame.actInv(point)
-                memory.append((self.steps, np.array(self.result.getNearestPoint1()), normal, local))
+                local = frame.actInv(np.array(result.getNearestPoint2()))
+                scene_point = np.array(result.getNearestPoint1())
+                memory.append((self.steps, scene_point, np.array(result.normal), local))
             for _, scene_point, normal, local in memory:
                 point = frame.act(local)
                 d = float(normal @ (point - scene_point))
