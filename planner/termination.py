@@ -17,7 +17,7 @@ class Deadline:
     """True once ``seconds`` of wall-clock (monotonic) time have passed since creation."""
 
     seconds: float
-    start: float = field(default_factory=time.monotonic)
+    start: float = field(default_factory=lambda: time.monotonic())  # the module's clock, late-bound
 
     def __call__(self) -> bool:
         return time.monotonic() - self.start >= self.seconds

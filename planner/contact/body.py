@@ -26,6 +26,8 @@ from numpy.typing import NDArray
 
 from planner.character import Character, Limb
 from planner.contact.reachability import ground_limbs
+from planner.contact.state import LimbContact
+from planner.scene import Surface
 
 FloatArray = NDArray[np.float64]
 
@@ -189,3 +191,43 @@ def reference_contact(limb: Limb, placement: FloatArray) -> tuple[FloatArray, Fl
         normal = placement[:3, :3] @ np.asarray(limb.normal, dtype=np.float64)
         normal = normal / np.linalg.norm(normal)
     return contact_points(limb, placement, normal), normal
+
+
+def lies_on(
+    contact: LimbContact,
+    surface: Surface,
+    limb: Limb,
+    *,
+    height_tolerance: float,
+    normal_tolerance: float,
+) -> bool:
+    """Whether ``contact`` rests on ``surface``: its points within ``height_tolerance`` (m)
+    of the surface plane and inside its polygon, its normal within ``normal_tolerance``
+    (rad) of the surface normal, and for a patch the effector's contact normal too (a point
+    contact has no orientation). The one rule every check of a contact uses."""
+    if float(np.abs(surface.height(contact.points)).max()) > height_tolerance:
+        return False
+    if not bool(np.all(surface.contains_projection(contact.points))):
+        return False
+    limit = float(np.cos(normal_tolerance))
+    if float(contact.normal @ surface.normal) < limit:
+        return False
+    if limb.contact == "point":
+        return True
+    axis = contact.placement[:3, :3] @ limb.normal
+    return float(axis @ surface.normal / np.linalg.norm(axis)) >= limit
+
+
+def self_collides(character: Character, q: FloatArray, data: Any, geometry_data: Any) -> bool:
+    """Whether two body shapes of a declared collision pair intersect at ``q`` (nq,);
+    ``data`` and ``geometry_data`` are the character's Pinocchio scratch data."""
+    return bool(
+        pin.computeCollisions(
+            character.model,
+            data,
+            character.geometry,
+            geometry_data,
+            np.asarray(q, dtype=np.float64),
+            True,
+        )
+    )

@@ -14,7 +14,13 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from planner.contact.body import contact_placement, contact_points, lifted_geometries
+from planner.contact.body import (
+    contact_placement,
+    contact_points,
+    lies_on,
+    lifted_geometries,
+)
+from planner.contact.body import self_collides as body_self_collides
 from planner.contact.context import ContactContext
 from planner.contact.state import ContactState, LimbContact
 from trajectory import (
@@ -135,22 +141,17 @@ def balance_margin(ctx: ContactContext, contacts: Sequence[LimbContact], com: Fl
 
 
 def contact_on_surface(ctx: ContactContext, contact: LimbContact) -> bool:
-    """Contact points within ``surface_tolerance`` of the surface, inside it, normals aligned."""
+    """Contact points within ``surface_tolerance`` of the surface, inside it, normals aligned
+    (``body.lies_on`` with the context's tolerances)."""
     if contact.surface < 0 or contact.surface >= len(ctx.scene.surfaces):
         return False
-    surface = ctx.scene.surfaces[contact.surface]
-    if np.any(np.abs(surface.height(contact.points)) > ctx.params.surface_tolerance):
-        return False
-    if not bool(np.all(surface.contains_projection(contact.points))):
-        return False
-    spec = ctx.character.limb(contact.limb)
-    limit = float(np.cos(ctx.params.normal_tolerance))
-    if float(contact.normal @ surface.normal) < limit:
-        return False
-    if spec.contact == "point":
-        return True
-    axis = contact.placement[:3, :3] @ spec.normal
-    return float(axis @ surface.normal) >= limit
+    return lies_on(
+        contact,
+        ctx.scene.surfaces[contact.surface],
+        ctx.character.limb(contact.limb),
+        height_tolerance=ctx.params.surface_tolerance,
+        normal_tolerance=ctx.params.normal_tolerance,
+    )
 
 
 _REQUEST = coal.CollisionRequest()
@@ -233,12 +234,8 @@ def obstacle_normal(
 
 
 def self_collides(ctx: ContactContext, q: FloatArray) -> bool:
-    """Whether two non-adjacent body shapes intersect at ``q``."""
-    return bool(
-        pin.computeCollisions(
-            ctx.model, ctx.pin_data, ctx.character.geometry, ctx.geom_data, q, True
-        )
-    )
+    """Whether two non-adjacent body shapes intersect at ``q`` (``body.self_collides``)."""
+    return body_self_collides(ctx.character, q, ctx.pin_data, ctx.geom_data)
 
 
 def collision_free(

@@ -12,7 +12,6 @@ the reachability condition and the COM is in static equilibrium with a robustnes
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -26,7 +25,9 @@ from planner.contact.body import (
     body_geometry,
     contact_placement,
     contact_points,
+    lies_on,
     lifted_geometries,
+    self_collides,
     sphere_centre,
 )
 from planner.contact.reachability import ReachabilityChecker, ground_limbs
@@ -104,15 +105,6 @@ def body_collides_scene(
     return False
 
 
-def self_collides(character: Character, q: FloatArray) -> bool:
-    """Whether the character at ``q`` (nq,) collides with itself (declared pairs only)."""
-    model, gmodel = character.model, character.geometry
-    data, gdata = model.createData(), pin.GeometryData(gmodel)
-    return bool(
-        pin.computeCollisions(model, data, gmodel, gdata, np.asarray(q, dtype=np.float64), True)
-    )
-
-
 def _support_below(
     scene: Scene, point: FloatArray, search_height: float
 ) -> tuple[Surface, FloatArray] | None:
@@ -172,22 +164,6 @@ def _project(
         PostureTask(reference, weights, gain=0.3),
     ]
     return solve_ik(model, q, tasks, data=data, active=dofs)
-
-
-def contact_on_surface(contact: LimbContact, surface: Surface, limb: Limb) -> bool:
-    """Contact points within ``CONTACT_TOLERANCE`` of the surface plane and inside it, and the
-    effector contact normal within ``NORMAL_TOLERANCE`` of the surface normal (patches only:
-    a point contact has no orientation)."""
-    heights = np.abs(surface.height(contact.points))
-    if float(heights.max()) > CONTACT_TOLERANCE:
-        return False
-    if not bool(np.all(surface.contains_projection(contact.points))):
-        return False
-    if limb.contact == "point":
-        return True
-    axis = contact.placement[:3, :3] @ limb.normal
-    cos = float(np.clip(axis @ surface.normal / np.linalg.norm(axis), -1.0, 1.0))
-    return math.acos(cos) <= NORMAL_TOLERANCE
 
 
 def _equilibrium(
@@ -260,12 +236,19 @@ def state_from_root_pose(
             limb.mu,
             surface.id,
         )
-        if not contact_on_surface(contact, surface, limb):
+        if not lies_on(
+            contact,
+            surface,
+            limb,
+            height_tolerance=CONTACT_TOLERANCE,
+            normal_tolerance=NORMAL_TOLERANCE,
+        ):
             return _fail(f"{limb.name} is not fully on surface {surface.id}")
         contacts.append(contact)
     if body_collides_scene(scene, character, q, contacts):
         return _fail("the body collides with the scene")
-    if self_collides(character, q):
+    model = character.model
+    if self_collides(character, q, scratch_data(model), pin.GeometryData(character.geometry)):
         return _fail("the body collides with itself")
     balanced, margin, com = _equilibrium(character, q, contacts, params)
     stats: dict[str, float | int | str] = {

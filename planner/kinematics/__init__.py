@@ -1,19 +1,16 @@
 """Whole-body inverse kinematics over Pinocchio models with a free-flyer root.
 
 ``solve_ik`` (weighted damped least squares with joint limits), ``project_contact`` (one
-limb onto a surface), ``track_com`` (keyframes along a COM trajectory), swing arcs, forward
+limb onto a surface), swing arcs, forward
 kinematics helpers and conversions between Pinocchio configurations and named joint values.
 """
 
 from planner.kinematics.ik import IkProblem, IkResult, resolve_active, solve_ik
 from planner.kinematics.keyframes import (
-    KeyframeTrack,
-    hold_contacts,
     keyframe_times,
     minimum_jerk,
     swing_arc,
     swing_trajectory,
-    track_com,
 )
 from planner.kinematics.model import (
     bounded_dofs,
@@ -53,7 +50,6 @@ __all__ = [
     "FramePositionTask",
     "IkProblem",
     "IkResult",
-    "KeyframeTrack",
     "PostureTask",
     "Priority",
     "TargetTask",
@@ -68,7 +64,6 @@ __all__ = [
     "frame_placements",
     "frame_support_dofs",
     "has_free_flyer_root",
-    "hold_contacts",
     "joint_dofs",
     "joint_id",
     "keyframe_times",
@@ -80,6 +75,5 @@ __all__ = [
     "solve_ik",
     "swing_arc",
     "swing_trajectory",
-    "track_com",
     "within_limits",
 ]

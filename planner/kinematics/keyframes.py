@@ -1,70 +1,15 @@
-"""Whole-body keyframes along a COM trajectory (2PAC section 7.2), and swing-foot arcs.
-
-Each keyframe solves inverse kinematics (one compiled problem per track, only its COM and
-swing targets moved), warm-started from the previous keyframe or where the two previous
-ones lead at constant velocity: stance contacts held (contact tier), the COM on its curve
-(COM tier), the swing effector on its path (effector tier) and a posture pull below all of
-them.
-"""
+"""Keyframe times and swing-effector arcs (the whole-body tracking is ``planner.motion``)."""
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable
 
 import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
-from planner.kinematics.ik import IkProblem
-from planner.kinematics.model import (
-    frame_id,
-    frame_placements,
-    has_free_flyer_root,
-    scratch_data,
-)
-from planner.kinematics.tasks import (
-    ComTask,
-    FramePlacementTask,
-    FramePositionTask,
-    PostureTask,
-    Priority,
-    TargetTask,
-    Task,
-)
-
 FloatArray = NDArray[np.float64]
-ComPath = Callable[[float], ArrayLike] | tuple[ArrayLike, ArrayLike]
-SwingPath = Callable[[float], ArrayLike]
-
-
-@dataclass(frozen=True, slots=True)
-class KeyframeTrack:
-    """Keyframes of :func:`track_com`, batch on axis 0.
-
-    ``times`` (k,) s; ``configurations`` (k, nq); ``contact_errors`` (k,) the largest stance
-    position error (m) and ``contact_angle_errors`` (k,) the largest stance angular error
-    (rad); ``com_errors`` (k,) m; ``swing_errors`` (k,) m (NaN without a swing path);
-    ``success`` (k,) whether every task of that keyframe was within tolerance.
-    """
-
-    times: FloatArray
-    configurations: FloatArray
-    contact_errors: FloatArray
-    contact_angle_errors: FloatArray
-    com_errors: FloatArray
-    swing_errors: FloatArray
-    success: NDArray[np.bool_]
-
-    def __post_init__(self) -> None:
-        for name in self.__slots__:
-            getattr(self, name).flags.writeable = False
-
-    @property
-    def all_success(self) -> bool:
-        """True when every keyframe succeeded."""
-        return bool(self.success.all())
 
 
 def keyframe_times(t_start: float, t_end: float, rate: float = 30.0) -> FloatArray:
@@ -80,139 +25,6 @@ def keyframe_times(t_start: float, t_end: float, rate: float = 30.0) -> FloatArr
     else:
         times[-1] = t_end
     return np.asarray(times, dtype=np.float64)
-
-
-def hold_contacts(
-    model: pin.Model, q: ArrayLike, frames: Sequence[int | str], data: pin.Data | None = None
-) -> list[FramePlacementTask]:
-    """Contact-tier placement tasks holding ``frames`` where configuration ``q`` puts them."""
-    poses = frame_placements(model, np.asarray(q, dtype=np.float64), frames, data)
-    return [
-        FramePlacementTask(f, pose, Priority.CONTACT) for f, pose in zip(frames, poses, strict=True)
-    ]
-
-
-def _com_function(com: ComPath) -> tuple[Callable[[float], FloatArray], float | None, float | None]:
-    if callable(com):
-
-        def evaluate(t: float) -> FloatArray:
-            return np.asarray(com(t), dtype=np.float64).reshape(3)
-
-        return evaluate, None, None
-    times = np.asarray(com[0], dtype=np.float64)
-    points = np.asarray(com[1], dtype=np.float64)
-    if times.ndim != 1 or points.shape != (times.size, 3) or times.size == 0:
-        raise ValueError("COM samples must be times (n,) and points (n, 3)")
-    if np.any(np.diff(times) <= 0):
-        raise ValueError("COM sample times must increase strictly")
-
-    def interpolate(t: float) -> FloatArray:
-        return np.array([np.interp(t, times, points[:, k]) for k in range(3)])
-
-    return interpolate, float(times[0]), float(times[-1])
-
-
-def track_com(
-    model: pin.Model,
-    q_start: ArrayLike,
-    com: ComPath,
-    *,
-    stance: Sequence[TargetTask],
-    swing_frame: int | str | None = None,
-    swing: SwingPath | None = None,
-    reference: ArrayLike | None = None,
-    posture_weights: float | ArrayLike = 1.0,
-    t_start: float | None = None,
-    t_end: float | None = None,
-    rate: float = 30.0,
-    com_axes: tuple[bool, bool, bool] = (True, True, True),
-    data: pin.Data | None = None,
-    max_iterations: int = 50,
-    tolerance: float = 1e-4,
-    angular_tolerance: float = 1e-3,
-    predict: bool = False,
-) -> KeyframeTrack:
-    """Keyframes following ``com`` while holding ``stance`` and moving ``swing_frame``.
-
-    ``com`` is a callable ``t -> (3,)`` (m, world) or samples ``(times (n,), points (n, 3))``
-    interpolated linearly. ``stance`` are the contact tasks to hold (see :func:`hold_contacts`).
-    ``swing`` maps ``t`` to a position (3,) or a pose (4, 4) of ``swing_frame`` (see
-    :func:`swing_trajectory`). ``reference`` (nq,) is the posture pulled toward (``q_start`` by
-    default; root dofs get weight 0 unless ``posture_weights`` is an (nv,) array). Times run
-    from ``t_start`` to ``t_end`` at ``rate`` Hz (defaults: the sample range). Each keyframe
-    is warm-started from the previous one (with ``predict``, moved on at the velocity of the
-    last two: fewer iterations on a smooth path); a failed keyframe is kept (best effort) and
-    flagged.
-
-    Raises ValueError on malformed input (including a missing time range for a callable).
-    """
-    q = np.array(q_start, dtype=np.float64)
-    if q.shape != (model.nq,):
-        raise ValueError(f"q_start must be ({model.nq},)")
-    com_at, t0_default, t1_default = _com_function(com)
-    t0 = t_start if t_start is not None else t0_default
-    t1 = t_end if t_end is not None else t1_default
-    if t0 is None or t1 is None:
-        raise ValueError("t_start and t_end are required when com is a callable")
-    if (swing is None) != (swing_frame is None):
-        raise ValueError("swing and swing_frame go together")
-    swing_id = frame_id(model, swing_frame) if swing_frame is not None else -1
-    times = keyframe_times(t0, t1, rate)
-    ref = q.copy() if reference is None else np.asarray(reference, dtype=np.float64)
-    weights = np.asarray(posture_weights, dtype=np.float64)
-    if weights.ndim == 0:
-        weights = np.full(model.nv, float(weights))
-        if has_free_flyer_root(model):
-            weights[:6] = 0.0
-    posture = PostureTask(ref, weights, gain=0.3)
-    d = scratch_data(model) if data is None else data
-
-    k = times.size
-    configurations = np.zeros((k, model.nq))
-    contact_err, contact_ang, com_err = np.zeros(k), np.zeros(k), np.zeros(k)
-    swing_err = np.full(k, np.nan)
-    success = np.zeros(k, dtype=bool)
-    n_stance = len(stance)
-    # One problem for the whole track: only the COM and swing targets move between keyframes.
-    tasks: list[Task] = [*stance, ComTask(com_at(float(times[0])), com_axes)]
-    if swing is not None:
-        first = np.asarray(swing(float(times[0])), dtype=np.float64)
-        if first.shape == (4, 4):
-            tasks.append(FramePlacementTask(swing_id, first, Priority.EFFECTOR))
-        else:
-            tasks.append(
-                FramePositionTask(swing_id, first.reshape(3), np.zeros(3), Priority.EFFECTOR)
-            )
-    tasks.append(posture)
-    problem = IkProblem(
-        model, tasks, data=d, tolerance=tolerance, angular_tolerance=angular_tolerance
-    )
-    for i, t in enumerate(times):
-        if i:
-            problem.set_target(n_stance, com_at(float(t)))
-            if swing is not None:
-                target = np.asarray(swing(float(t)), dtype=np.float64)
-                problem.set_target(
-                    n_stance + 1, target if target.shape == (4, 4) else target.reshape(3)
-                )
-        guess = q
-        if predict and i >= 2:  # constant-velocity prediction from the two previous keyframes
-            velocity = pin.difference(model, configurations[i - 2], configurations[i - 1])
-            guess = pin.integrate(model, q, velocity)
-        result = problem.solve(guess, max_iterations)
-        q = np.array(result.q)
-        configurations[i] = q
-        res = result.residuals
-        if n_stance:
-            contact_err[i] = res[:n_stance, 0].max()
-            contact_ang[i] = res[:n_stance, 1].max()
-        com_err[i] = res[n_stance, 0]
-        if swing is not None:
-            swing_err[i] = res[n_stance + 1, 0]
-        success[i] = result.success
-    return KeyframeTrack(
-        times, configurations, contact_err, contact_ang, com_err, swing_err, success
-    )
 
 
 def _cubic_bezier(control: FloatArray, s: FloatArray) -> FloatArray:

@@ -88,13 +88,15 @@ class MotionReport:
 @dataclass(frozen=True, slots=True)
 class BuiltMotion:
     """Phases, COM segments and keyframes of a motion, with its report. ``end`` is the
-    configuration (nq,) the motion ends in."""
+    configuration (nq,) the motion ends in; ``swing_lifts`` the arc height (m) each phase's
+    swing was tracked with (0 without a swing)."""
 
     phases: tuple[Phase, ...]
     com: tuple[ComSegment, ...]
     keyframes: tuple[Keyframe, ...]
     report: MotionReport
     end: FloatArray
+    swing_lifts: tuple[float, ...] = ()
 
 
 def keyframe_grid(t0: float, t1: float, rate: float) -> FloatArray:
@@ -137,8 +139,18 @@ class _Targets:
         key = (k, lift)
         if key not in self._arcs:
             normal = self.character.limb(swing.limb).normal
+            # the arc lands a little before the phase ends: the effector, which lags its
+            # target by a few control steps, settles on its contact before it must hold it
+            settle = min(
+                tuning.LANDING_SETTLE_S, tuning.LANDING_SETTLE_SHARE * (phase.t1 - phase.t0)
+            )
             self._arcs[key] = swing_trajectory(
-                swing.start, swing.end, phase.t0, phase.t1, lift=lift, normal_in_frame=normal
+                swing.start,
+                swing.end,
+                phase.t0,
+                phase.t1 - settle,
+                lift=lift,
+                normal_in_frame=normal,
             )
         return self._arcs[key]
 
@@ -152,7 +164,9 @@ class _Targets:
         if arc is not None and phase.swing is not None:
             swing = (phase.swing.limb, np.asarray(arc(t), dtype=np.float64))
         stance = tuple((c.limb, np.asarray(c.placement)) for c in phase.stance)
-        return StepTargets(stance, com, swing, phase.posture, k not in self.unguarded)
+        return StepTargets(
+            stance, com, swing, phase.posture, k not in self.unguarded, phase.level_trunk
+        )
 
 
 @dataclass(slots=True)
@@ -224,6 +238,37 @@ def _track_segment(
     return out
 
 
+def _blend_into(
+    checker: KeyframeChecker,
+    targets: _Targets,
+    keyframes: list[Keyframe],
+    checks: list[KeyframeCheck],
+    com_errors: list[float],
+    q_end: FloatArray,
+) -> FloatArray:
+    """Blend the keyframes of the last ``END_BLEND_S`` seconds into ``q_end`` (nq,) in place
+    (along the configuration manifold, smoothstep weight reaching 1 at the last keyframe),
+    checking them again. Returns the last configuration (``q_end`` itself)."""
+    model = checker.model
+    t_end = keyframes[-1].t
+    window = min(tuning.END_BLEND_S, t_end - keyframes[0].t)
+    for i, key in enumerate(keyframes):
+        u = 1.0 if window <= 0.0 else (key.t - (t_end - window)) / window
+        if u <= 0.0:
+            continue
+        if i == len(keyframes) - 1:
+            q = np.array(q_end, dtype=np.float64)
+        else:
+            w = u * u * (3.0 - 2.0 * u)
+            q = np.asarray(pin.interpolate(model, key.q, q_end, w), dtype=np.float64)
+        phase = targets.spec.phases[targets.phase_index(key.t)]
+        keyframes[i] = Keyframe(t=key.t, q=q, contacts=key.contacts)
+        checks[i] = checker.check(q, phase.stance)
+        com = np.asarray(pin.centerOfMass(model, checker.data, q), dtype=np.float64)
+        com_errors[i] = float(np.linalg.norm(com - targets.at(key.t).com))
+    return np.array(keyframes[-1].q)
+
+
 def build_motion(
     character: Character,
     scene_bvh: Any,
@@ -236,7 +281,9 @@ def build_motion(
     checked. A swing phase whose keyframes collide, or whose effector does not reach its
     landing, is tracked again from its start with the next higher arc of ``SWING_LIFTS``
     (2PAC section 7.2), the best attempt kept. ``until`` is polled once per keyframe: when
-    it fires, the keyframes so far are returned and the report says ``cut_short``."""
+    it fires, the keyframes so far are returned and the report says ``cut_short``. With
+    ``spec.q_end``, a motion not cut short ends exactly there (its last ``END_BLEND_S``
+    seconds blended into it, and checked again)."""
     tracker = WholeBodyTracker(character, scene_bvh, obstacles)
     checker = KeyframeChecker(character, scene_bvh, obstacles)
     targets = _Targets(character, spec)
@@ -295,14 +342,18 @@ def build_motion(
             break
     keyframes = [key for s in segments for key in s.keyframes]
     checks = [c for s in segments for c in s.checks]
-    errors = np.asarray([e for s in segments for e in s.com_errors])
+    com_errors = [e for s in segments for e in s.com_errors]
+    cut_short = any(s.cut_short for s in segments)
+    if spec.q_end is not None and not cut_short:
+        q = _blend_into(checker, targets, keyframes, checks, com_errors, spec.q_end)
+    errors = np.asarray(com_errors)
     colliding = tuple(key.t for key, c in zip(keyframes, checks, strict=True) if c.colliding)
     deepest = max(checks, key=lambda c: c.scene_depth)
     last_t = keyframes[-1].t
     report = MotionReport(
         phases_animated=sum(1 for p in spec.phases if p.t1 <= last_t + 1e-9),
         phases_total=len(spec.phases),
-        cut_short=any(s.cut_short for s in segments),
+        cut_short=cut_short,
         colliding_keyframes=len(colliding),
         worst_scene_depth=deepest.scene_depth,
         worst_shape=deepest.shape,
@@ -319,4 +370,8 @@ def build_motion(
         ComSegment(t0=float(s.t0), t1=float(s.t1), control_points=s.control_points)
         for s in spec.com.segments
     )
-    return BuiltMotion(phases, com_segments, tuple(keyframes), report, q)
+    swing_lifts = tuple(
+        0.0 if p.swing is None else targets.lifts.get(k, p.swing.lift)
+        for k, p in enumerate(spec.phases)
+    )
+    return BuiltMotion(phases, com_segments, tuple(keyframes), report, q, swing_lifts)

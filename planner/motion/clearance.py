@@ -48,8 +48,14 @@ def point_jacobian(model: Any, data: Any, joint: int, point: FloatArray) -> Floa
 def _damper_row(
     normal: FloatArray, jacobian: FloatArray, distance: float, security: float
 ) -> tuple[FloatArray, float]:
-    """One row of ``G dq <= h`` for ``n . J dq >= -rate (d - d_s)``, the demanded push capped."""
-    bound = tuning.DAMPER_RATE * (distance - security)
+    """One row of ``G dq <= h`` for ``n . J dq >= -rate (d - d_s)`` while the shape is
+    farther than the security distance ``d_s``; closer, it may not approach (a forearm next
+    to the hand on the floor is not pushed up, dragging the held hand off its contact), and
+    a shape inside the scene is pushed out at ``rate * |d|``, capped at ``MAX_PUSH``."""
+    if distance >= security:
+        bound = tuning.DAMPER_RATE * (distance - security)
+    else:
+        bound = min(0.0, tuning.DAMPER_RATE * distance)
     return -normal @ jacobian, max(bound, -tuning.MAX_PUSH)
 
 

@@ -40,7 +40,9 @@ class MotionPhase:
     """[t0, t1] s with ``stance`` held throughout, at most one ``swing``.
 
     posture : (nq,) the configuration the free joints are pulled toward (the state the phase
-    leads to); its root orientation is the trunk orientation aimed at (roll and pitch).
+    leads to); its root orientation is the trunk orientation aimed at: its roll and pitch
+    with ``level_trunk`` False (a step ending in a validated state), else its yaw alone (the
+    trunk upright; a character whose trunk may pitch keeps the pitch).
     """
 
     t0: float
@@ -48,18 +50,21 @@ class MotionPhase:
     stance: tuple[LimbContact, ...]
     posture: FloatArray
     swing: Swing | None = None
+    level_trunk: bool = True
 
 
 @dataclass(frozen=True, slots=True)
 class MotionSpec:
     """What to animate: from ``q_start`` (nq,) through ``phases`` (contiguous, in time
     order), the COM following ``com`` over [phases[0].t0, phases[-1].t1], keyframes at
-    ``rate`` per second."""
+    ``rate`` per second; with ``q_end`` (nq,), the last keyframe is exactly ``q_end`` (the
+    last ``END_BLEND_S`` seconds are blended into it)."""
 
     q_start: FloatArray
     phases: tuple[MotionPhase, ...]
     com: PiecewiseBezier
     rate: float = 30.0
+    q_end: FloatArray | None = None
 
     def __post_init__(self) -> None:
         if not self.phases:

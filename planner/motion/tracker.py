@@ -43,6 +43,8 @@ class StepTargets:
     or None. posture : (nq,) pulled toward; its root orientation is the trunk target.
     swing_guarded : whether the swinging effector's own shapes are kept off the scene (a last
     resort lets a swing that cannot land otherwise through: the checker still counts it).
+    level_trunk : the trunk aims at the posture's yaw only (and its pitch for a character
+    whose trunk may pitch); otherwise at the posture's own roll and pitch.
     """
 
     stance: tuple[tuple[str, FloatArray], ...]
@@ -50,6 +52,7 @@ class StepTargets:
     swing: tuple[str, FloatArray] | None
     posture: FloatArray
     swing_guarded: bool = True
+    level_trunk: bool = True
 
 
 def effector_geometries(character: Character) -> dict[str, frozenset[int]]:
@@ -147,14 +150,17 @@ class WholeBodyTracker:
         self._lower = np.asarray(model.lowerPositionLimit[root_nq:], dtype=np.float64)
         self._upper = np.asarray(model.upperPositionLimit[root_nq:], dtype=np.float64)
 
-    def trunk_rotation(self, posture: FloatArray) -> FloatArray:
-        """(3, 3) trunk orientation aimed at from a planned configuration (nq,): its yaw,
-        and its pitch only for a character whose trunk may pitch (a hexapod on a slope);
-        never a roll. Memoised per posture (a phase keeps its posture for many steps)."""
+    def trunk_rotation(self, posture: FloatArray, level: bool = True) -> FloatArray:
+        """(3, 3) trunk orientation aimed at from a planned configuration (nq,): with
+        ``level``, its yaw, and its pitch only for a character whose trunk may pitch (a
+        hexapod on a slope), never a roll; otherwise its own orientation. Memoised per
+        posture (a phase keeps its posture for many steps)."""
+        rotation = pin.Quaternion(posture[3:7]).toRotationMatrix()
+        if not level:
+            return np.asarray(rotation, dtype=np.float64)
         key = posture[3:7].tobytes()
         cached = self._trunk_cache.get(key)
         if cached is None:
-            rotation = pin.Quaternion(posture[3:7]).toRotationMatrix()
             yaw, pitch, _ = Rotation.from_matrix(rotation).as_euler("ZYX")
             if self.character.max_pitch <= tuning.LEVEL_TRUNK_PITCH:
                 pitch = 0.0
@@ -217,9 +223,16 @@ class WholeBodyTracker:
         self.com_task.set_target(goal)
         tasks.append(self.com_task)
         posture = np.asarray(targets.posture, dtype=np.float64)
-        self.trunk_task.set_target(pin.SE3(self.trunk_rotation(posture), posture[:3].copy()))
+        trunk = self.trunk_rotation(posture, targets.level_trunk)
+        self.trunk_task.set_target(pin.SE3(trunk, posture[:3].copy()))
         tasks.append(self.trunk_task)
-        self.posture_task.set_target(posture)
+        # each joint pulled at most POSTURE_MAX_ERROR toward its posture per step: summed
+        # over thirty joints, a far posture would otherwise outweigh the stance contacts
+        reach = tuning.POSTURE_MAX_ERROR
+        joints = slice(self._bounded[0], None)
+        goal = q.copy()
+        goal[joints] = q[joints] + np.clip(posture[joints] - q[joints], -reach, reach)
+        self.posture_task.set_target(goal)
         tasks.append(self.posture_task)
         self.scene.set_phase(frozenset(skipped), light)
         for limits in (

@@ -24,7 +24,7 @@ DAMPING = 1e-4
 STANCE_COST = 100.0
 """Stance contacts: dominant, so the COM and the swing never drag a held contact."""
 
-COM_COST = 10.0
+COM_COST = 40.0
 """Centre of mass following its curve."""
 
 SWING_POSITION_COST = 20.0
@@ -42,6 +42,11 @@ alone leaves the body free to crouch and fold; the planned states say how tall i
 
 POSTURE_COST = 1.0
 """Joints pulled toward the phase's planned posture: arms hang naturally, knees unfold."""
+
+POSTURE_MAX_ERROR = 0.1
+"""rad: each joint's posture target is at most this far from where the joint is (the
+posture error saturated like the COM's and the swing's): a posture far from the current one
+(the next state's legs) pulled the feet 7 mm off their contacts in the first step."""
 
 LEVEL_TRUNK_PITCH = 0.05
 """rad: a character allowed at most this pitch (``max_pitch``) keeps its trunk level; one
@@ -107,5 +112,32 @@ MISSED_LANDING_WEIGHT = 30
 """A missed landing (a foot that then slides to its contact) counts as this many colliding
 keyframes when attempts are compared."""
 
+LANDING_SETTLE_S = 0.1
+"""s: a swing arc reaches its contact this long before its phase ends (at most
+``LANDING_SETTLE_SHARE`` of the phase), so the lagging effector has landed when the phase
+switches and the contact is held (without it, the first held keyframe jumps up to 7 mm)."""
+
+LANDING_SETTLE_SHARE = 0.2
+"""Largest share of a swing phase given to the landing settle."""
+
 LANDING_TOLERANCE = 0.02
 """m: a swing whose effector ends further than this from its arc's end has not landed."""
+
+# --- ending in a given state ----------------------------------------------------------------
+END_BLEND_S = 0.3
+"""s: a motion that must end exactly in a given configuration (a Twister step ends in the
+state the contact planner validated) is blended into it over its last this many seconds,
+along the configuration manifold with a smoothstep weight; the blended keyframes are
+checked again."""
+
+# --- one contact change (a Twister step) ------------------------------------------------------
+STEP_MIN_SWING_S = 0.5
+"""s, shortest swing of a one-step motion."""
+
+STEP_MIN_SHIFT_S = 0.3
+"""s, shortest phase without a swing (the COM shift before a break, the settle after a
+creation)."""
+
+STEP_MAX_ACCELERATION = 0.2
+"""m/s^2, peak COM acceleration of a one-step motion's rest-to-rest shift: low enough that
+the shift over one foot passes Eq. 1 everywhere (0.4 fails it on the Twister games)."""

@@ -128,7 +128,9 @@ async def test_unreachable_goal_stops_within_budget(client: httpx.AsyncClient) -
     elapsed = time.monotonic() - started
     assert response.status_code == 200
     assert response.json()["status"] in {"TIMEOUT", "INFEASIBLE"}
-    assert elapsed < 1.5 + 5.0  # budget + margin, plus a worker's first start-up
+    # a hang guard only, far from any machine's speed: the budget itself is checked on a
+    # virtual clock in tests/planner/contact/test_plan_budget.py and timed by bench/planner.py
+    assert elapsed < 1.0 + 60.0
 
 
 def test_service_pitch_bound_is_the_planner_bound() -> None:

@@ -6,13 +6,13 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from planner.contact.body import self_collides
 from planner.contact.reachability import ground_limbs
 from planner.contact.standing import (
     CONTACT_TOLERANCE,
     GRAVITY,
     StandingParams,
     body_collides_scene,
-    self_collides,
     standing_state,
     state_from_root_pose,
 )
@@ -70,7 +70,10 @@ def assert_valid_standing(character_id: str, scene_id: str, state: ContactState)
             axis = contact.placement[:3, :3] @ limb.normal
             assert float(axis @ surface.normal) >= np.cos(0.02)
     assert not body_collides_scene(world, character, state.q, state.contacts)
-    assert not self_collides(character, state.q)
+    model = character.model
+    assert not self_collides(
+        character, state.q, model.createData(), pin.GeometryData(character.geometry)
+    )
     pose = np.eye(4)
     pose[:3, :3] = pin.Quaternion(state.q[3:7]).toRotationMatrix()
     pose[:3, 3] = state.q[:3]

@@ -7,8 +7,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from planner.kinematics import (
+    FramePlacementTask,
+    Priority,
     frame_placement,
-    hold_contacts,
     limb_dofs,
     project_contact,
     within_limits,
@@ -29,7 +30,8 @@ def test_projects_foot_onto_reachable_points(robot: Robot, perturb: Perturb) -> 
     data = model.createData()
     dofs = limb_dofs(model, robot.leg_roots[0], robot.feet[0])
     limb_q = _limb_q_indices(robot, dofs)
-    hold = hold_contacts(model, robot.q_stand, [robot.feet[1]], data)
+    foot = robot.feet[1]
+    hold = [FramePlacementTask(foot, frame_placement(model, robot.q_stand, foot), Priority.CONTACT)]
     for _ in range(10):
         q_target = robot.q_stand.copy()
         q_target[limb_q] = perturb(model, rng, robot.q_stand, 0.3)[limb_q]

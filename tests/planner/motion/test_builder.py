@@ -4,6 +4,7 @@ limits, no shape sinking into the scene, stance contacts held."""
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 
 import numpy as np
@@ -60,3 +61,31 @@ def test_the_same_spec_gives_the_same_keyframes() -> None:
     b = build_motion(ctx.character, ctx.scene.collision.bvh, spec)  # type: ignore[attr-defined]
     assert [k.t for k in a.keyframes] == [k.t for k in b.keyframes]
     assert all(np.array_equal(x.q, y.q) for x, y in zip(a.keyframes, b.keyframes, strict=True))
+
+
+def test_a_motion_with_an_end_configuration_ends_exactly_there() -> None:
+    """``q_end``: the last keyframe is that configuration, bit for bit; the blend into it is
+    checked like every keyframe and holds the stance (a squat ending crouched)."""
+    ctx, spec = _squat_spec(drop=0.1, duration=1.0)
+    model = ctx.character.model  # type: ignore[attr-defined]
+    tracked = build_motion(ctx.character, ctx.scene.collision.bvh, spec)  # type: ignore[attr-defined]
+    character = ctx.character  # type: ignore[attr-defined]
+    legs = np.concatenate([character.limb(x).idx_q for x in ("left_foot", "right_foot")])
+    free = np.setdiff1d(np.arange(7, model.nq), legs)
+    end = np.array(tracked.end)
+    end[free] = 0.5 * (
+        end[free]
+        + np.clip(end[free] + 0.3, model.lowerPositionLimit[free], model.upperPositionLimit[free])
+    )  # arms and torso elsewhere
+    motion = build_motion(
+        ctx.character,  # type: ignore[attr-defined]
+        ctx.scene.collision.bvh,  # type: ignore[attr-defined]
+        dataclasses.replace(spec, q_end=end),
+    )
+    np.testing.assert_array_equal(motion.keyframes[-1].q, end)
+    np.testing.assert_array_equal(motion.end, end)
+    assert motion.report.colliding_keyframes == 0
+    assert motion.report.max_hold_error <= 0.01  # the blend of two held postures
+    early = [k for k in motion.keyframes if k.t < 1.0 - tuning.END_BLEND_S - 1e-9]
+    for a, b in zip(early, tracked.keyframes, strict=False):
+        np.testing.assert_array_equal(a.q, b.q)  # only the last END_BLEND_S seconds change
