@@ -28,6 +28,7 @@ from planner.motion.sequence import phase_kinematics
 from planner.offline import load_offline_data
 from planner.result import PlanResult, PlanStatus
 from planner.scene import Scene
+from tests.motion_audit import audit_from_domain
 from tests.paths import gecko_cache_dir
 from tests.scenarios.jumps.scenes import load_scenario_scene
 
@@ -160,6 +161,37 @@ def test_keyframes_hold_contacts_and_com_stays_in_kinematic_polytopes(planned) -
                 comb(n, i) * (1 - s) ** (n - i) * s**i * seg.control_points[i] for i in range(n + 1)
             )
             assert float(np.max(kin.violation(np.asarray(point)))) <= 1e-3
+
+
+# Plans whose keyframes still put a link into the scene or the body (measured by
+# bench/motion.py; issue 12 stays open for them): the rest of the audit holds there too.
+STILL_COLLIDING = frozenset(
+    {
+        "hpp_floor_bauzil_talos",  # gripper fingers through the floor
+        "hpp_plateforme_surfaces_talos",  # self-collision of the legs
+        "hpp_slalom_debris_around_hyq",  # trunk inside the debris
+        "hpp_slalom_debris_hyq",
+        "hpp_stair_bauzil_talos",  # knee into the steps, legs into each other
+        "rubble_quadruped",  # a foot into a block
+    }
+)
+
+
+def test_keyframes_pass_the_independent_audit(planned) -> None:  # type: ignore[no-untyped-def]
+    """The URDF's own collision geometry through Pinocchio and coal against the scene mesh
+    (tests/motion_audit.py, no planner code): no joint over its speed limit or 10 rad/s, no
+    root jump over 5 cm between 30 Hz keyframes, the keyframe COM within 2 cm of its curve
+    (p99), every phase animated; no link over 1 cm into the scene but the stance effectors
+    and no self-collision over 1 cm, except on the plans listed as still colliding."""
+    name, result, scene, character, _ = planned
+    motion = result.value.motion
+    audit = audit_from_domain(character.id, scene, motion.keyframes, motion.phases, motion.com)
+    assert audit.pops == 0 and audit.root_jumps == 0, audit.summary()
+    assert audit.com_error_p99_m <= 0.02, audit.summary()
+    assert audit.phases_animated == audit.phases, audit.summary()
+    if name not in STILL_COLLIDING:
+        assert audit.penetrating_frames == 0, audit.summary()
+        assert audit.self_collision_frames == 0, audit.summary()
 
 
 def test_same_seed_same_plan(planned) -> None:  # type: ignore[no-untyped-def]
