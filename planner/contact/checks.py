@@ -35,7 +35,7 @@ from trajectory import (
 
 FloatArray = NDArray[np.float64]
 
-_KIN_TOL = 1e-3  # m, slack allowed on the learned COM polytopes
+KINEMATIC_TOLERANCE = 1e-3  # m, slack allowed on the learned COM polytopes
 
 
 def forward(ctx: ContactContext, q: FloatArray) -> None:
@@ -285,6 +285,6 @@ def check_state(ctx: ContactContext, state: ContactState, hold_tol: float = 1e-3
     com = com_of(ctx, q)
     margin = balance_margin(ctx, state.contacts, com)
     kin = kinematics_of(ctx, state.contacts)
-    kin_ok = bool(kin.violation(com) <= _KIN_TOL)
+    kin_ok = bool(kin.violation(com) <= KINEMATIC_TOLERANCE)
     free = collision_free(ctx, q, state.contacts)
     return StateReport(on, held, free, margin >= ctx.params.margin, kin_ok, margin, com)

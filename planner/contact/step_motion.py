@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.contact.checks import (
+    KINEMATIC_TOLERANCE,
     balance_margin,
     check_state,
     com_of,
@@ -35,7 +36,6 @@ from planner.motion.step import BuiltStep, build_step
 FloatArray = NDArray[np.float64]
 
 _TRANSITION_SHIFTS = (0.03, 0.06)  # m, moves of the transition point off an obstacle
-_KINEMATIC_TOLERANCE = 1e-3  # m, slack on the learned COM polytopes (as in checks)
 
 
 @dataclass(frozen=True, slots=True)
@@ -123,7 +123,7 @@ def _motion(
         "transition": {"point": point.tolist(), "margin": margin, "kinematic_violation": violation},
         "transition_slack": [max(0.0, violation)],
         "quasi_static_feasible": bool(
-            margin >= ctx.params.margin and violation <= _KINEMATIC_TOLERANCE
+            margin >= ctx.params.margin and violation <= KINEMATIC_TOLERANCE
         ),
         "max_hold_error": quality.max_hold_error,
         "colliding_keyframes": quality.colliding_keyframes,
@@ -166,7 +166,7 @@ def _shift_transition(
         if (
             not check_state(ctx, moved).valid
             or balance_margin(ctx, fewer, com) < ctx.params.margin
-            or max(kin_b.violation(com), kin_a.violation(com)) > _KINEMATIC_TOLERANCE
+            or max(kin_b.violation(com), kin_a.violation(com)) > KINEMATIC_TOLERANCE
         ):
             continue
         again = _motion(ctx, before, moved, limb, rate)

@@ -85,23 +85,13 @@ def step_spec(
     posture = np.asarray(after.q, dtype=np.float64)
     # the trunk heads for the state's own orientation: a step ends exactly there (a body on
     # hands and feet is pitched on purpose)
-    phases = (
+    swings = (swing, None) if creating else (None, swing)
+    stances = (before.contacts, after.contacts)
+    phases = tuple(
         MotionPhase(
-            float(times[0]),
-            float(times[1]),
-            before.contacts,
-            posture,
-            swing if creating else None,
-            level_trunk=False,
-        ),
-        MotionPhase(
-            float(times[1]),
-            float(times[2]),
-            after.contacts,
-            posture,
-            None if creating else swing,
-            level_trunk=False,
-        ),
+            float(times[k]), float(times[k + 1]), stances[k], posture, swings[k], level_trunk=False
+        )
+        for k in range(2)
     )
     return MotionSpec(np.asarray(before.q, dtype=np.float64), phases, curve, rate, q_end=posture)
 
