@@ -10,7 +10,8 @@ from fastapi import FastAPI
 
 from service import __version__
 from service.errors import install_error_handlers
-from service.routes import characters, health, jumps, plans, scenes, twister
+from service.results import ResultStore
+from service.routes import characters, health, jumps, plans, results, scenes, twister, viewer
 from service.settings import Settings, get_settings
 from service.workers import WorkerPool, registry_for
 
@@ -29,6 +30,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         settings.roadmaps_path.mkdir(parents=True, exist_ok=True)
         app.state.pool = WorkerPool(settings)
         app.state.roadmap_jobs = {}
+        app.state.results = ResultStore(
+            settings.results_path,
+            max_count=settings.results_max_count,
+            max_bytes=settings.results_max_bytes,
+        )
         log.info("gecko ready: %d characters", len(registry.characters))
         try:
             yield
@@ -49,4 +55,6 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(plans.router)
     app.include_router(twister.router)
     app.include_router(jumps.router)
+    app.include_router(results.router)
+    viewer.install(app)
     return app

@@ -283,6 +283,9 @@ class FailureOut(BaseModel):
 
 
 class TwisterStepResponse(BaseModel):
+    id: str = Field(
+        default="", description="content id of this answer: GET it again as JSON or as .glb"
+    )
     status: str
     seed: int
     state: StateOut
@@ -354,6 +357,9 @@ class JumpRequest(BaseModel):
 
 
 class JumpResponse(BaseModel):
+    id: str = Field(
+        default="", description="content id of this answer: GET it again as JSON or as .glb"
+    )
     status: str
     seed: int
     jumps: list[JumpOut]
@@ -404,6 +410,9 @@ class PlanRequest(BaseModel):
 
 
 class PlanResponse(BaseModel):
+    id: str = Field(
+        default="", description="content id of this answer: GET it again as JSON or as .glb"
+    )
     status: str
     seed: int
     message: str = ""
@@ -413,3 +422,17 @@ class PlanResponse(BaseModel):
     states: list[StateOut]
     report: dict[str, object]
     timings: dict[str, float]
+
+
+class ResultSummary(BaseModel):
+    """A stored result, as listed by ``GET /v1/results``."""
+
+    id: str
+    kind: Literal["plan", "step", "jump"]
+    character: str | None = None
+    scene: str | None = None
+    status: str | None = None
+    seed: int | None = None
+    keyframes: int = Field(default=0, description="number of keyframes")
+    duration: float = Field(default=0.0, description="time of the last keyframe, s")
+    stored_at: float = Field(description="Unix time the result was stored")

@@ -37,6 +37,15 @@ class Settings(BaseSettings):
         default=2, ge=1, le=64, description="planning processes per service worker"
     )
     data_seed: int = Field(default=0, ge=0)
+    results_max_count: int = Field(
+        default=500, ge=1, le=1_000_000, description="stored results kept (least recently used go)"
+    )
+    results_max_bytes: int = Field(
+        default=512 * 1024 * 1024,
+        ge=1024 * 1024,
+        le=1024**4,
+        description="bytes of stored results kept (least recently used go)",
+    )
 
     @property
     def cache_path(self) -> Path:
@@ -47,6 +56,11 @@ class Settings(BaseSettings):
     def roadmaps_path(self) -> Path:
         """Jump roadmaps and their build status files."""
         return self.home / "roadmaps"
+
+    @property
+    def results_path(self) -> Path:
+        """Stored plan, Twister step and jump answers (``service.results``)."""
+        return self.home / "results"
 
     @property
     def scenes_path(self) -> Path:

@@ -9,12 +9,20 @@ from typing import Any
 
 from anyio import to_thread
 from fastapi import APIRouter, Request
-from fastapi.responses import JSONResponse
+from fastapi.responses import JSONResponse, Response
 
 from planner.ballistic.planner import RoadmapStore
 from service import compute
 from service.deps import RegistryDep, SettingsDep
 from service.errors import not_found
+from service.routes.results import (
+    RESULT_RESPONSES,
+    FormatQuery,
+    OverlaysQuery,
+    SceneQuery,
+    remember,
+    stored_answer,
+)
 from service.schemas import ErrorBody, JumpRequest, JumpResponse, RoadmapRequest, RoadmapStatus
 
 router = APIRouter(prefix="/v1", tags=["jumps"])
@@ -99,4 +107,18 @@ async def create_jumps(body: JumpRequest, request: Request) -> JumpResponse:
     answer = await request.app.state.pool.run(
         compute.run_jumps, body.model_dump_json(), seed, timeout_s=body.time_budget_s + GRACE_S
     )
-    return JumpResponse.model_validate(answer)
+    return JumpResponse.model_validate(await remember(request, "jump", body, seed, answer))
+
+
+@router.get("/jumps/{jump_id}", responses=RESULT_RESPONSES, response_model=JumpResponse)
+async def get_jumps(
+    jump_id: str,
+    request: Request,
+    registry: RegistryDep,
+    format: FormatQuery = None,
+    scene: SceneQuery = False,
+    overlays: OverlaysQuery = False,
+) -> Any:
+    """A stored jump answer by id: JSON, or ``/v1/jumps/{id}.glb`` (glTF 2.0)."""
+    answer = await stored_answer(request, registry, "jump", jump_id, format, scene, overlays)
+    return answer if isinstance(answer, Response) else JumpResponse.model_validate(answer)

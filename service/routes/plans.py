@@ -6,8 +6,18 @@ import secrets
 from typing import Any
 
 from fastapi import APIRouter, Request
+from fastapi.responses import Response
 
 from service import compute
+from service.deps import RegistryDep
+from service.routes.results import (
+    RESULT_RESPONSES,
+    FormatQuery,
+    OverlaysQuery,
+    SceneQuery,
+    remember,
+    stored_answer,
+)
 from service.schemas import ErrorBody, PlanRequest, PlanResponse
 
 router = APIRouter(prefix="/v1", tags=["plans"])
@@ -29,4 +39,18 @@ async def create_plan(body: PlanRequest, request: Request) -> PlanResponse:
         seed,
         timeout_s=1.5 * body.time_budget_s + GRACE_S,
     )
-    return PlanResponse.model_validate(answer)
+    return PlanResponse.model_validate(await remember(request, "plan", body, seed, answer))
+
+
+@router.get("/plans/{plan_id}", responses=RESULT_RESPONSES, response_model=PlanResponse)
+async def get_plan(
+    plan_id: str,
+    request: Request,
+    registry: RegistryDep,
+    format: FormatQuery = None,
+    scene: SceneQuery = False,
+    overlays: OverlaysQuery = False,
+) -> Any:
+    """A stored plan by id: ``/v1/plans/{id}`` (JSON) or ``/v1/plans/{id}.glb`` (glTF 2.0)."""
+    answer = await stored_answer(request, registry, "plan", plan_id, format, scene, overlays)
+    return answer if isinstance(answer, Response) else PlanResponse.model_validate(answer)

@@ -13,6 +13,7 @@ from planner.scene import Scene, SceneError, load_mesh
 from service import convert
 from service.deps import RegistryDep, SettingsDep
 from service.errors import ApiError, not_found
+from service.export import scene_glb_bytes
 from service.registry import Registry
 from service.schemas import ErrorBody, SceneDetail, SceneSummary
 
@@ -58,13 +59,16 @@ async def get_scene_mesh(
     registry: RegistryDep,
     format: Literal["stl", "glb"] = Query("stl", description="binary STL or GLB"),
 ) -> Response:
-    """The scene's triangle mesh, world frame, metres, z up."""
+    """The scene's triangle mesh in metres: STL in Gecko's world (z up), GLB in glTF's
+    (y up; Gecko's (x, y, z) is glTF's (x, z, -y))."""
     scene = await _scene(registry, scene_id)
+    if format == "glb":
+        data = await to_thread.run_sync(scene_glb_bytes, scene)
+        return Response(data, media_type="model/gltf-binary")
     mesh = trimesh.Trimesh(scene.vertices, scene.faces, process=False)
-    data = mesh.export(file_type=format)
-    assert isinstance(data, bytes)
-    media = "model/stl" if format == "stl" else "model/gltf-binary"
-    return Response(data, media_type=media)
+    stl = mesh.export(file_type="stl")
+    assert isinstance(stl, bytes)
+    return Response(stl, media_type="model/stl")
 
 
 async def _read_body(request: Request, limit: int) -> bytes:

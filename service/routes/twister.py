@@ -6,8 +6,18 @@ import secrets
 from typing import Any
 
 from fastapi import APIRouter, Request
+from fastapi.responses import Response
 
 from service import compute
+from service.deps import RegistryDep
+from service.routes.results import (
+    RESULT_RESPONSES,
+    FormatQuery,
+    OverlaysQuery,
+    SceneQuery,
+    remember,
+    stored_answer,
+)
 from service.schemas import ErrorBody, TwisterStepRequest, TwisterStepResponse
 
 router = APIRouter(prefix="/v1/twister", tags=["twister"])
@@ -33,4 +43,19 @@ async def twister_step(body: TwisterStepRequest, request: Request) -> TwisterSte
         seed,
         timeout_s=body.time_budget_s + GRACE_S,
     )
+    answer = await remember(request, "step", body, seed, answer)
     return TwisterStepResponse.model_validate(answer)
+
+
+@router.get("/steps/{step_id}", responses=RESULT_RESPONSES, response_model=TwisterStepResponse)
+async def get_step(
+    step_id: str,
+    request: Request,
+    registry: RegistryDep,
+    format: FormatQuery = None,
+    scene: SceneQuery = False,
+    overlays: OverlaysQuery = False,
+) -> Any:
+    """A stored Twister step by id: JSON, or ``/v1/twister/steps/{id}.glb`` (glTF 2.0)."""
+    answer = await stored_answer(request, registry, "step", step_id, format, scene, overlays)
+    return answer if isinstance(answer, Response) else TwisterStepResponse.model_validate(answer)

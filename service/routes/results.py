@@ -1,0 +1,119 @@
+"""Stored results: listing, and the shared GET of one plan, Twister step or jump as JSON or
+GLB (the routes of each kind call :func:`stored_answer`)."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from anyio import to_thread
+from fastapi import APIRouter, Query, Request
+from fastapi.responses import Response
+from pydantic import BaseModel
+
+from service.deps import RegistryDep
+from service.errors import ApiError, not_found
+from service.export import result_glb
+from service.results import Kind, ResultStore, StoredResult, result_id
+from service.schemas import ErrorBody, ResultSummary
+
+router = APIRouter(prefix="/v1", tags=["results"])
+Format = Literal["json", "glb"]
+KIND_NAMES: dict[Kind, str] = {"plan": "plan", "step": "Twister step", "jump": "jump"}
+MAX_LIST = 1000
+GLB_MEDIA = "model/gltf-binary"
+RESULT_RESPONSES: dict[int | str, dict[str, Any]] = {
+    200: {"content": {GLB_MEDIA: {}}, "description": "the result as JSON, or as GLB"},
+    400: {"model": ErrorBody, "description": "the suffix and ?format= disagree"},
+    404: {"model": ErrorBody, "description": "unknown (or evicted) result id"},
+    409: {"model": ErrorBody, "description": "GLB of a result without keyframes"},
+    422: {"model": ErrorBody, "description": "invalid format"},
+}
+FormatQuery = Annotated[
+    Format | None, Query(description="json or glb (default: the path's suffix, else json)")
+]
+SceneQuery = Annotated[bool, Query(description="GLB: include the scene mesh (node 'scene')")]
+OverlaysQuery = Annotated[
+    bool,
+    Query(description="GLB: include the COM curve or jump arcs ('com') and contact points"),
+]
+
+
+def store_of(request: Request) -> ResultStore:
+    """The app's result store."""
+    store: ResultStore = request.app.state.results
+    return store
+
+
+async def remember(
+    request: Request, kind: Kind, body: BaseModel, seed: int, answer: dict[str, Any]
+) -> dict[str, Any]:
+    """Give an answer its content id and store it; returns the answer with ``id`` set."""
+    request_json = body.model_dump(mode="json")
+    rid = result_id(kind, request_json, seed)
+    answer = {**answer, "id": rid}
+    summary = {
+        "character": request_json.get("character"),
+        "scene": request_json.get("scene"),
+        "status": answer.get("status"),
+        "seed": seed,
+        "keyframes": len(answer.get("keyframes", [])),
+        "duration": answer["keyframes"][-1]["t"] if answer.get("keyframes") else 0.0,
+    }
+    stored = StoredResult(kind, rid, {**request_json, "seed": seed}, answer)
+    await to_thread.run_sync(store_of(request).put, stored, summary)
+    return answer
+
+
+def _split(reference: str, format: Format | None) -> tuple[str, Format]:
+    rid, _, suffix = reference.partition(".")
+    if suffix and suffix not in ("json", "glb"):
+        raise ApiError(
+            400, "invalid_request", f"unknown suffix '.{suffix}'; use .json or .glb", "format"
+        )
+    if suffix and format is not None and suffix != format:
+        raise ApiError(
+            400,
+            "invalid_request",
+            f"the path asks for .{suffix} but ?format={format}",
+            "format",
+        )
+    chosen: Format = format or ("glb" if suffix == "glb" else "json")
+    return rid, chosen
+
+
+async def stored_answer(
+    request: Request,
+    registry: RegistryDep,
+    kind: Kind,
+    reference: str,
+    format: Format | None,
+    scene: bool,
+    overlays: bool,
+) -> dict[str, Any] | Response:
+    """A stored result: its JSON answer (a dict) or its GLB (a Response)."""
+    rid, chosen = _split(reference, format)
+    stored = await to_thread.run_sync(store_of(request).get, rid, kind)
+    if stored is None:
+        raise not_found(KIND_NAMES[kind], rid, "id")
+    if chosen == "json":
+        return stored.response
+    data = await to_thread.run_sync(
+        lambda: result_glb(registry, stored, with_scene=scene, with_overlays=overlays)
+    )
+    filename = f"{kind}-{rid}.glb"
+    return Response(
+        data,
+        media_type=GLB_MEDIA,
+        headers={"content-disposition": f'inline; filename="{filename}"'},
+    )
+
+
+@router.get("/results")
+async def list_results(
+    request: Request,
+    kind: Annotated[Kind | None, Query(description="only this kind")] = None,
+    limit: Annotated[int, Query(ge=1, le=MAX_LIST, description="at most this many")] = 100,
+) -> list[ResultSummary]:
+    """Stored results, most recently used first (id, kind, character, scene, status, ...)."""
+    metas = await to_thread.run_sync(store_of(request).summaries, limit, kind)
+    return [ResultSummary.model_validate(meta) for meta in metas]

@@ -1,0 +1,316 @@
+"""glTF export over HTTP: stored results by id, GLB validity (Khronos validator), the
+animation against Pinocchio's forward kinematics, the y-up scene, determinism, bad input.
+
+The GLB is read back with pygltflib and evaluated here, by code that shares nothing with
+the exporter: accessors decoded from the binary chunk, node transforms composed down the
+tree, animation samplers interpolated (linear, slerp) at the keyframe times.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+import httpx
+import numpy as np
+import pinocchio as pin
+import pygltflib
+import pytest
+
+from planner.character import get_character
+from service.results import ResultStore, StoredResult
+from tests.gltf_validator import errors_of, validate
+from tests.service.conftest import LIVE_PLAN
+
+GLB_PATHS = {"plan": "/v1/plans", "step": "/v1/twister/steps", "jump": "/v1/jumps"}
+# Gecko z up -> glTF y up: (x, y, z) -> (x, z, -y), written here independently.
+TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+COMPONENTS = {"SCALAR": 1, "VEC3": 3, "VEC4": 4}
+DTYPES = {5126: "<f4", 5125: "<u4", 5123: "<u2"}
+
+
+def _get(url: str, **params: Any) -> httpx.Response:
+    return httpx.get(url, params=params, timeout=120)
+
+
+def _glb(gecko_url: str, kind: str, rid: str, **params: Any) -> bytes:
+    response = _get(f"{gecko_url}{GLB_PATHS[kind]}/{rid}.glb", **params)
+    assert response.status_code == 200, response.text
+    assert response.headers["content-type"] == "model/gltf-binary"
+    return response.content
+
+
+# -- an independent glTF reader -------------------------------------------------------------
+
+
+def _accessor(gltf: pygltflib.GLTF2, blob: bytes, index: int) -> np.ndarray:
+    accessor = gltf.accessors[index]
+    view = gltf.bufferViews[accessor.bufferView]
+    width = COMPONENTS[accessor.type]
+    start = (view.byteOffset or 0) + (accessor.byteOffset or 0)
+    data = np.frombuffer(
+        blob, dtype=DTYPES[accessor.componentType], count=accessor.count * width, offset=start
+    )
+    return data.reshape(accessor.count, width).astype(np.float64)
+
+
+def _quat_matrix(q: np.ndarray) -> np.ndarray:
+    x, y, z, w = q / np.linalg.norm(q)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def _slerp(a: np.ndarray, b: np.ndarray, s: float) -> np.ndarray:
+    dot = float(a @ b)
+    if dot < 0:
+        b, dot = -b, -dot
+    if dot > 0.9995:
+        out = a + s * (b - a)
+    else:
+        theta = np.arccos(dot)
+        out = (np.sin((1 - s) * theta) * a + np.sin(s * theta) * b) / np.sin(theta)
+    return np.asarray(out / np.linalg.norm(out))
+
+
+def _sample(times: np.ndarray, values: np.ndarray, t: float, rotation: bool) -> np.ndarray:
+    if t <= times[0]:
+        return values[0]
+    if t >= times[-1]:
+        return values[-1]
+    k = int(np.searchsorted(times, t, side="right")) - 1
+    s = (t - times[k]) / (times[k + 1] - times[k])
+    if rotation:
+        return _slerp(values[k], values[k + 1], s)
+    return np.asarray(values[k] + s * (values[k + 1] - values[k]))
+
+
+def world_transforms(glb: bytes, t: float) -> dict[str, np.ndarray]:
+    """Every named node's (4, 4) world transform at animation time t."""
+    gltf = pygltflib.GLTF2.load_from_bytes(glb)
+    blob = gltf.binary_blob()
+    trs: list[dict[str, np.ndarray]] = []
+    for node in gltf.nodes:
+        assert node.matrix is None and node.scale in (None, [1, 1, 1])
+        trs.append(
+            {
+                "translation": np.array(node.translation or [0.0, 0.0, 0.0]),
+                "rotation": np.array(node.rotation or [0.0, 0.0, 0.0, 1.0]),
+            }
+        )
+    for animation in gltf.animations:
+        for channel in animation.channels:
+            sampler = animation.samplers[channel.sampler]
+            times = _accessor(gltf, blob, sampler.input)[:, 0]
+            values = _accessor(gltf, blob, sampler.output)
+            path = channel.target.path
+            trs[channel.target.node][path] = _sample(times, values, t, path == "rotation")
+    world: dict[str, np.ndarray] = {}
+
+    def walk(index: int, parent: np.ndarray) -> None:
+        local = np.eye(4)
+        local[:3, :3] = _quat_matrix(trs[index]["rotation"])
+        local[:3, 3] = trs[index]["translation"]
+        placed = parent @ local
+        name = gltf.nodes[index].name
+        assert name not in world, f"node name {name} repeated"
+        world[name] = placed
+        for child in gltf.nodes[index].children:
+            walk(child, placed)
+
+    for root in gltf.scenes[gltf.scene].nodes:
+        walk(root, np.eye(4))
+    return world
+
+
+def _q(character: Any, keyframe: dict[str, Any]) -> np.ndarray:
+    q = np.array(character.q_ref, dtype=np.float64)
+    q[:3] = keyframe["root"]["position"]
+    q[3:7] = keyframe["root"]["orientation"]
+    for k, name in enumerate(character.joint_names):
+        q[7 + k] = keyframe["joints"][name]
+    return q
+
+
+# -- tests ----------------------------------------------------------------------------------
+
+
+def test_every_glb_passes_the_khronos_validator(
+    gecko_url: str, live_results: dict[str, dict[str, Any]], tmp_path: Path
+) -> None:
+    files = []
+    for kind, body in live_results.items():
+        for params in ({}, {"scene": "true", "overlays": "true"}):
+            path = tmp_path / f"{kind}-{len(params)}.glb"
+            path.write_bytes(_glb(gecko_url, kind, body["id"], **params))
+            files.append(path)
+    for scene in ("flat", "stairs"):
+        path = tmp_path / f"scene-{scene}.glb"
+        response = _get(f"{gecko_url}/v1/scenes/{scene}/mesh", format="glb")
+        assert response.status_code == 200
+        path.write_bytes(response.content)
+        files.append(path)
+    reports = validate(files)
+    assert len(reports) == len(files)
+    for path, report in zip(files, reports, strict=True):
+        assert report["issues"]["numErrors"] == 0, (path.name, errors_of(report))
+        assert report["info"]["version"] == "2.0"
+
+
+@pytest.mark.parametrize("kind", ["plan", "step", "jump"])
+def test_animation_matches_forward_kinematics(
+    gecko_url: str, live_results: dict[str, dict[str, Any]], kind: str
+) -> None:
+    body = live_results[kind]
+    character = get_character(LIVE_PLAN["character"] if kind == "plan" else "quadruped")
+    glb = _glb(gecko_url, kind, body["id"])
+    model = character.model
+    data = model.createData()
+    keyframes = body["keyframes"]
+    picks = sorted({0, len(keyframes) // 3, len(keyframes) // 2, len(keyframes) - 1})
+    links = [f for f in model.frames if f.type == pin.FrameType.BODY]
+    for index in picks:
+        keyframe = keyframes[index]
+        world = world_transforms(glb, float(np.float32(keyframe["t"])))
+        pin.framesForwardKinematics(model, data, _q(character, keyframe))
+        for frame in links:
+            placement = data.oMf[model.getFrameId(frame.name)]
+            expected_p = TO_Y_UP @ np.asarray(placement.translation)
+            expected_r = TO_Y_UP @ np.asarray(placement.rotation)
+            got = world[frame.name]
+            assert np.abs(got[:3, 3] - expected_p).max() < 1e-5, (kind, index, frame.name)
+            assert np.abs(got[:3, :3] - expected_r).max() < 1e-5, (kind, index, frame.name)
+
+
+def test_glb_has_one_node_per_link_and_the_phases(
+    gecko_url: str, live_results: dict[str, dict[str, Any]]
+) -> None:
+    body = live_results["plan"]
+    glb = _glb(gecko_url, "plan", body["id"], scene="true", overlays="true")
+    gltf = pygltflib.GLTF2.load_from_bytes(glb)
+    names = [node.name for node in gltf.nodes]
+    character = get_character("humanoid")
+    for frame in character.model.frames:
+        if frame.type == pin.FrameType.BODY:
+            assert names.count(frame.name) == 1
+    assert {"scene", "com", "contacts"} <= set(names)
+    extras = gltf.scenes[0].extras["gecko"]
+    assert extras["id"] == body["id"] and extras["kind"] == "plan"
+    assert [p["limbs"] for p in extras["phases"]] == [
+        [c["limb"] for c in phase["contacts"]] for phase in body["phases"]
+    ]
+    assert len(gltf.animations) == 1
+    assert len(gltf.animations[0].channels) == len(character.joint_names) + 2
+
+
+def test_scene_glb_is_y_up(gecko_url: str) -> None:
+    response = _get(f"{gecko_url}/v1/scenes/stairs/mesh", format="glb")
+    assert response.status_code == 200
+    gltf = pygltflib.GLTF2.load_from_bytes(response.content)
+    positions = _accessor(
+        gltf, gltf.binary_blob(), gltf.meshes[0].primitives[0].attributes.POSITION
+    )
+    bounds = np.array(httpx.get(f"{gecko_url}/v1/scenes/stairs", timeout=30).json()["bounds"])
+    assert np.allclose(
+        positions.min(axis=0), [bounds[0][0], bounds[0][2], -bounds[1][1]], atol=1e-5
+    )
+    assert np.allclose(
+        positions.max(axis=0), [bounds[1][0], bounds[1][2], -bounds[0][1]], atol=1e-5
+    )
+    assert positions[:, 1].max() > 0.5, "the stairs rise along +y"
+    stl = _get(f"{gecko_url}/v1/scenes/stairs/mesh", format="stl")
+    assert stl.status_code == 200 and stl.headers["content-type"] == "model/stl"
+
+
+def test_same_request_same_id_and_bytes(
+    gecko_url: str, live_results: dict[str, dict[str, Any]]
+) -> None:
+    first = live_results["plan"]
+    again = httpx.post(f"{gecko_url}/v1/plans", json=LIVE_PLAN, timeout=180).json()
+    assert again["id"] == first["id"]
+    glb = _glb(gecko_url, "plan", first["id"])
+    assert _glb(gecko_url, "plan", again["id"]) == glb
+    assert _glb(gecko_url, "plan", first["id"], format="glb") == glb
+    other = httpx.post(f"{gecko_url}/v1/plans", json={**LIVE_PLAN, "seed": 2}, timeout=180)
+    assert other.json()["id"] != first["id"]
+    stored = _get(f"{gecko_url}/v1/plans/{first['id']}")
+    assert stored.status_code == 200
+    assert stored.json()["keyframes"] == first["keyframes"]
+    listed = _get(f"{gecko_url}/v1/results", kind="plan").json()
+    assert first["id"] in {entry["id"] for entry in listed}
+
+
+@pytest.mark.parametrize(
+    ("path", "params", "status", "field"),
+    [
+        ("/v1/plans/0123456789abcdef0123456789abcdef", {}, 404, "id"),
+        ("/v1/plans/not-an-id.glb", {}, 404, "id"),
+        ("/v1/jumps/0123456789abcdef0123456789abcdef.glb", {}, 404, "id"),
+        ("{plan}", {"format": "obj"}, 422, "format"),
+        ("{plan}.glb", {"format": "json"}, 400, "format"),
+        ("{plan}.png", {}, 400, "format"),
+        ("/v1/twister/steps/{plan_id}", {}, 404, "id"),
+        ("/v1/results", {"limit": 0}, 422, "limit"),
+        ("/v1/results", {"kind": "dance"}, 422, "kind"),
+        ("/v1/scenes/stairs/mesh", {"format": "fbx"}, 422, "format"),
+    ],
+)
+def test_bad_requests_name_the_field(
+    gecko_url: str,
+    live_results: dict[str, dict[str, Any]],
+    path: str,
+    params: dict[str, str],
+    status: int,
+    field: str,
+) -> None:
+    rid = live_results["plan"]["id"]
+    path = path.replace("{plan}", f"/v1/plans/{rid}").replace("{plan_id}", rid)
+    response = _get(f"{gecko_url}{path}", **params)
+    assert response.status_code == status, response.text
+    error = response.json()["error"]
+    assert error["field"] == field
+    if status == 404:
+        assert "unknown" in error["message"]
+
+
+def _stored(rid: str, stamp: int) -> StoredResult:
+    return StoredResult("plan", rid, {"seed": stamp}, {"status": "SOLVED", "keyframes": []})
+
+
+def test_store_evicts_least_recently_used(tmp_path: Path) -> None:
+    store = ResultStore(tmp_path, max_count=3, max_bytes=10**6)
+    ids = [f"{k:032x}" for k in range(5)]
+    for k, rid in enumerate(ids[:3]):
+        assert store.put(_stored(rid, k), {"status": "SOLVED"})
+    base = time.time() - 100
+    for k, rid in enumerate(ids[:3]):  # 0 oldest
+        for suffix in (".json", ".meta.json"):
+            os.utime(tmp_path / f"{rid}{suffix}", (base + k, base + k))
+    assert store.get(ids[0]) is not None  # used: now the most recent
+    store.put(_stored(ids[3], 3), {})
+    assert store.get(ids[1]) is None, "the least recently used went first"
+    assert all(store.get(rid) is not None for rid in (ids[0], ids[2], ids[3]))
+    assert len(store.summaries(10)) == 3
+    small = ResultStore(tmp_path / "small", max_count=100, max_bytes=2 * 1024 * 1024)
+    big = StoredResult("plan", ids[4], {}, {"blob": "x" * 3 * 1024 * 1024})
+    assert not small.put(big, {}), "a result larger than the byte bound is not kept"
+    for k in range(40):
+        small.put(StoredResult("plan", f"{k:032x}", {}, {"blob": "y" * 100_000}), {})
+    total = sum(p.stat().st_size for p in (tmp_path / "small").glob("*.json"))
+    assert total <= 2 * 1024 * 1024
+
+
+def test_result_without_keyframes_has_no_glb(gecko_url: str) -> None:
+    failed = {**LIVE_PLAN, "goal": {"stand_at": [0.5, 0.0, 5.0]}, "time_budget_s": 2}
+    body = httpx.post(f"{gecko_url}/v1/plans", json=failed, timeout=180).json()
+    if body["keyframes"]:
+        pytest.skip("that goal was reachable after all")
+    response = _get(f"{gecko_url}/v1/plans/{body['id']}.glb")
+    assert response.status_code == 409
+    assert response.json()["error"]["field"] == "id"
