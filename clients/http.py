@@ -30,6 +30,15 @@ def _checked(response: httpx.Response) -> Any:
     return response.json()
 
 
+def _checked_bytes(response: httpx.Response) -> bytes:
+    if response.status_code >= 400:
+        _checked(response)
+    return response.content
+
+
+RESULT_PATHS = {"plan": "/v1/plans", "step": "/v1/twister/steps", "jump": "/v1/jumps"}
+
+
 class GeckoClient:
     """Calls the service; every method returns the decoded JSON answer or raises GeckoError."""
 
@@ -75,3 +84,25 @@ class GeckoClient:
     async def roadmap(self, roadmap_id: str) -> dict[str, Any]:
         """``GET /v1/roadmaps/{id}``."""
         return dict(_checked(await self.http.get(f"/v1/roadmaps/{roadmap_id}")))
+
+    async def result(self, kind: str, result_id: str) -> dict[str, Any]:
+        """A stored answer by id: ``kind`` is ``plan``, ``step`` or ``jump``."""
+        return dict(_checked(await self.http.get(f"{RESULT_PATHS[kind]}/{result_id}")))
+
+    async def result_glb(
+        self, kind: str, result_id: str, *, scene: bool = False, overlays: bool = False
+    ) -> bytes:
+        """A stored answer as GLB (glTF 2.0, y up, metres): the character's node tree and
+        its animation; ``scene`` adds the scene mesh, ``overlays`` the COM curve and contacts."""
+        params = {"scene": str(scene).lower(), "overlays": str(overlays).lower()}
+        url = f"{RESULT_PATHS[kind]}/{result_id}.glb"
+        return _checked_bytes(await self.http.get(url, params=params, timeout=120.0))
+
+    async def results(self, limit: int = 100) -> list[dict[str, Any]]:
+        """``GET /v1/results``: stored answers, most recently used first."""
+        return list(_checked(await self.http.get("/v1/results", params={"limit": limit})))
+
+    async def scene_mesh(self, scene_id: str, fmt: str = "glb") -> bytes:
+        """``GET /v1/scenes/{id}/mesh``: GLB (y up) or STL (z up)."""
+        url = f"/v1/scenes/{scene_id}/mesh"
+        return _checked_bytes(await self.http.get(url, params={"format": fmt}))

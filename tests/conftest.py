@@ -28,3 +28,8 @@ def _preload_reference_oracle() -> None:
 
 
 _preload_reference_oracle()
+
+# After the oracle: the live server's fixtures import the service, hence Pinocchio.
+from tests.live_fixtures import gecko_url, live_results  # noqa: E402
+
+__all__ = ["gecko_url", "live_results"]

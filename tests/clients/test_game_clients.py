@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import asyncio
+import json
+from pathlib import Path
 
 import httpx
 import pytest
 
-from clients.game_engine import run, summary
+from clients.game_engine import main, run, summary
 from clients.http import GeckoClient
 from clients.twister import Game, describe, parse, play
 
@@ -49,3 +52,25 @@ async def test_twister_game_session(client: httpx.AsyncClient) -> None:
     assert "after 1 moves" in said[2] or "after 2 moves" in said[2]
     assert "lf_foot" not in said[3]
     assert describe({"status": "INFEASIBLE", "failure": {"reason": "R", "message": "m"}}, game)
+
+
+def test_game_engine_saves_json_and_glb(gecko_url: str, tmp_path: Path) -> None:
+    out, glb = tmp_path / "walk.json", tmp_path / "walk.glb"
+    code = main(
+        [
+            "plan", "--url", gecko_url, "--character", "humanoid", "--scene", "flat",
+            "--start", "0,0,0", "--goal", "0.5,0,0", "--seed", "1",
+            "--out", str(out), "--glb", str(glb),
+        ]
+    )  # fmt: skip
+    assert code == 0
+    answer = json.loads(out.read_text())
+    data = glb.read_bytes()
+    assert data[:4] == b"glTF" and len(data) > 1000
+    again = asyncio.run(_glb(gecko_url, answer["id"]))
+    assert again == data, "the client's GLB is the stored result's"
+
+
+async def _glb(url: str, rid: str) -> bytes:
+    async with httpx.AsyncClient(base_url=url) as http:
+        return await GeckoClient(http).result_glb("plan", rid)

@@ -22,7 +22,7 @@ import pytest
 from planner.character import get_character
 from service.results import ResultStore, StoredResult
 from tests.gltf_validator import errors_of, validate
-from tests.service.conftest import LIVE_PLAN
+from tests.live_fixtures import LIVE_PLAN
 
 GLB_PATHS = {"plan": "/v1/plans", "step": "/v1/twister/steps", "jump": "/v1/jumps"}
 # Gecko z up -> glTF y up: (x, y, z) -> (x, z, -y), written here independently.
