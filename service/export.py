@@ -34,14 +34,19 @@ def keyframe_arrays(
     character: Character, keyframes: list[dict[str, Any]]
 ) -> tuple[FloatArray, FloatArray, list[list[str]]]:
     """JSON keyframes as times (n,) s, Pinocchio configurations (n, nq) and contact limbs."""
-    n = len(keyframes)
-    qs = np.tile(np.asarray(character.q_ref, dtype=np.float64), (n, 1))
-    index = {name: 7 + k for k, name in enumerate(character.joint_names)}
-    for row, keyframe in enumerate(keyframes):
-        qs[row, :3] = keyframe["root"]["position"]
-        qs[row, 3:7] = keyframe["root"]["orientation"]
-        for name, value in keyframe["joints"].items():
-            qs[row, index[name]] = value
+    names = character.joint_names
+    reference = dict(zip(names, np.asarray(character.q_ref[7:], dtype=np.float64), strict=True))
+    qs = np.array(
+        [
+            [
+                *k["root"]["position"],
+                *k["root"]["orientation"],
+                *(k["joints"].get(name, reference[name]) for name in names),
+            ]
+            for k in keyframes
+        ],
+        dtype=np.float64,
+    ).reshape(len(keyframes), 7 + len(names))
     times = np.array([k["t"] for k in keyframes], dtype=np.float64)
     return times, qs, [list(k.get("contacts", [])) for k in keyframes]
 

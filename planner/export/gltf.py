@@ -99,9 +99,11 @@ class SceneMesh:
 class _Link:
     """One URDF link: its BODY frame, the link it hangs from, and how it moves.
 
-    left, right : (4, 4) constant transforms; the link's placement in its parent link is
-    ``left @ motion(q) @ right``, where motion is the joint's own transform (identity for a
-    link fixed to its parent). joint : Pinocchio joint index when the link moves, else 0.
+    left, right : (4, 4) constant transforms; the link's placement in its parent link (the
+    root link's: in glTF's world, :data:`Z_UP_TO_Y_UP` included) is ``left @ motion(q) @
+    right``, where motion is the joint's own transform (identity for a link fixed to its
+    parent). joint : Pinocchio joint index when the link moves, else 0. quat_left,
+    quat_right : (4,) their rotations as quaternions [x, y, z, w].
     """
 
     name: str
@@ -110,6 +112,8 @@ class _Link:
     joint: int
     left: FloatArray
     right: FloatArray
+    quat_left: FloatArray
+    quat_right: FloatArray
 
 
 def _se3(placement: Any) -> FloatArray:
@@ -156,8 +160,21 @@ def _links(character: Character) -> tuple[_Link, ...]:
         else:
             left = _inverse(parent_placement) @ _se3(model.jointPlacements[joint])
             right = placement
+        if parent == -1:
+            left[:3, :] = Z_UP_TO_Y_UP @ left[:3, :]
         index_of[frame_id] = len(links)
-        links.append(_Link(str(frame.name), frame_id, parent, joint, left, right))
+        links.append(
+            _Link(
+                str(frame.name),
+                frame_id,
+                parent,
+                joint,
+                left,
+                right,
+                _quat(left[:3, :3]),
+                _quat(right[:3, :3]),
+            )
+        )
     if not links or links[0].joint != 1:
         raise ExportError("the model's first link must be the free-flyer root")
     return tuple(links)
@@ -225,13 +242,14 @@ def _link_tracks(
 ) -> tuple[FloatArray, FloatArray]:
     """A moving link's placement in its parent over the keyframes: translations (n, 3) m,
     quaternions (n, 4) [x, y, z, w] (sign-continuous). The root link's is in glTF's world."""
-    left = link.left.copy()
-    if link.parent == -1:
-        left[:3, :] = Z_UP_TO_Y_UP @ left[:3, :]
+    left = link.left
     quat_m, trans_m = _joint_motion(character, link.joint, qs)
-    quat_left, quat_right = _quat(left[:3, :3]), _quat(link.right[:3, :3])
-    quats = _quat_multiply(_quat_multiply(quat_left, quat_m), quat_right)
-    inner = trans_m + _quat_rotate(quat_m, link.right[:3, 3])
+    quats = _quat_multiply(link.quat_left, quat_m)
+    if np.any(link.quat_right[:3]):
+        quats = _quat_multiply(quats, link.quat_right)
+    inner = trans_m
+    if np.any(link.right[:3, 3]):
+        inner = inner + _quat_rotate(quat_m, link.right[:3, 3])
     translations = left[:3, 3][None, :] + inner @ left[:3, :3].T
     flips = np.sign(np.einsum("ij,ij->i", quats[1:], quats[:-1]))
     flips[flips == 0] = 1.0
@@ -251,6 +269,8 @@ class _Visual:
     placement: FloatArray
     key: str
     rgba: tuple[float, float, float, float]
+    translation: list[float] | None
+    rotation: list[float] | None
 
 
 def _primitive(geometry: Any) -> Any:
@@ -322,7 +342,10 @@ def _visuals(
         frame_placement = _se3(model.frames[obj.parentFrame].placement)
         placement = _inverse(frame_placement) @ _se3(obj.placement)
         rgba = tuple(float(v) for v in np.clip(np.asarray(obj.meshColor), 0.0, 1.0))
-        visuals.append(_Visual(str(obj.name), link, placement, key, rgba))  # type: ignore[arg-type]
+        translation, rotation = _trs(placement)
+        visuals.append(
+            _Visual(str(obj.name), link, placement, key, rgba, translation, rotation)  # type: ignore[arg-type]
+        )
     return tuple(visuals), meshes
 
 
@@ -456,12 +479,14 @@ def _plain(value: Any) -> Any:
         return {k: v for k, v in vars(value).items() if v is not None}
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         out = {}
-        for item in dataclasses.fields(value):
-            entry = _plain(getattr(value, item.name))
-            if entry is not None and entry != [] and entry != {}:
-                out[item.name] = entry
+        for name, item in vars(value).items():
+            if item is None or (isinstance(item, list | dict) and not item):
+                continue
+            out[name] = item if type(item) in (int, float, str) else _plain(item)
         return out
     if isinstance(value, list | tuple):
+        if all(type(v) in (int, float) for v in value):
+            return list(value)
         return [_plain(v) for v in value]
     if isinstance(value, dict):
         return {k: _plain(v) for k, v in value.items()}
@@ -612,13 +637,12 @@ def motion_glb(
             vertices, faces = meshes[visual.key]
             material = builder.material(visual.rgba)
             mesh_index[visual.key] = builder.triangle_mesh(visual.name, vertices, faces, material)
-        translation, rotation = _trs(visual.placement)
         child = builder.node(
             pygltflib.Node(
                 name=visual.name,
                 mesh=mesh_index[visual.key],
-                translation=translation,
-                rotation=rotation,
+                translation=visual.translation,
+                rotation=visual.rotation,
             )
         )
         children.setdefault(visual.link, []).append(child)

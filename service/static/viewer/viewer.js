@@ -43,6 +43,7 @@ const view = {
   contactGroups: [],
   lastCharacterPosition: new THREE.Vector3(),
   firstPaintMs: null,
+  paintedAt: null,
   openedAt: 0,
 };
 
@@ -304,7 +305,8 @@ function animate() {
   controls.update();
   renderer.render(world, camera);
   if (view.root && view.firstPaintMs === null && document.body.dataset.state === 'ready') {
-    view.firstPaintMs = performance.now() - view.openedAt;
+    view.paintedAt = performance.now();
+    view.firstPaintMs = view.paintedAt - view.openedAt;
     document.body.dataset.painted = 'true';
   }
 }
@@ -336,7 +338,8 @@ window.gecko = {
   get start() { return view.start; },
   get end() { return view.end; },
   get phases() { return view.phases; },
-  get firstPaintMs() { return view.firstPaintMs; },
+  get firstPaintMs() { return view.firstPaintMs; }, // ms from opening the GLB to its first frame
+  get paintedAt() { return view.paintedAt; }, // ms from the page's navigation to that frame
 };
 
 animate();
