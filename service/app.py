@@ -10,7 +10,7 @@ from fastapi import FastAPI
 
 from service import __version__
 from service.errors import install_error_handlers
-from service.results import ResultStore
+from service.results import ResultStore, code_version
 from service.routes import characters, health, jumps, plans, results, scenes, twister, viewer
 from service.settings import Settings, get_settings
 from service.workers import WorkerPool, registry_for
@@ -30,6 +30,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         settings.roadmaps_path.mkdir(parents=True, exist_ok=True)
         app.state.pool = WorkerPool(settings)
         app.state.roadmap_jobs = {}
+        log.info("code version %s", code_version())  # hashed once, before any request
         app.state.results = ResultStore(
             settings.results_path,
             max_count=settings.results_max_count,
