@@ -7,6 +7,7 @@ exactly (``coal.collide``), stopping at the first collision of each sample.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -16,6 +17,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from planner.character.batch_fk import TreeKinematics, joint_placements
+from planner.shapes import Box, Capsule
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -27,21 +29,37 @@ MIN_SEGMENT = 0.01
 
 def capsule_geometry_model(model: Any, radius: float) -> Any:
     """Per-link capsule approximation: for each joint, one capsule of ``radius`` from its origin
-    to each child joint origin (or, for a leaf, to its farthest attached frame); segments
-    shorter than :data:`MIN_SEGMENT` are skipped. Used for robots whose URDF collision
-    elements are meshes (loading and checking those is slow)."""
+    to each child joint origin (or, for a leaf, to ``radius`` short of its farthest attached
+    frame, so that the capsule ends at that frame); segments shorter than :data:`MIN_SEGMENT`
+    are skipped. Used for robots whose URDF collision elements are meshes (loading and
+    checking those is slow)."""
     gmodel = pin.GeometryModel()
     targets: dict[int, list[FloatArray]] = {j: [] for j in range(1, model.njoints)}
     for j in range(2, model.njoints):
         targets[int(model.parents[j])].append(np.array(model.jointPlacements[j].translation))
+    frames_of: dict[int, list[FloatArray]] = {j: [] for j in range(1, model.njoints)}
     for frame in model.frames:
         j = int(frame.parentJoint)
+        if j >= 1:
+            frames_of[j].append(np.array(frame.placement.translation))
         if j >= 1 and not any(int(model.parents[c]) == j for c in range(2, model.njoints)):
             targets[j].append(np.array(frame.placement.translation))
     for j in range(1, model.njoints):
         ends = targets[j]
         if j >= 2 and not any(int(model.parents[c]) == j for c in range(2, model.njoints)):
-            ends = [max(ends, key=lambda v: float(np.linalg.norm(v)))] if ends else []
+            # A leaf reaches its farthest frame (a sole, a foot point) with the capsule's
+            # surface, not its axis: the axis stops ``radius`` short of the tip.
+            tip = max(ends, key=lambda v: float(np.linalg.norm(v))) if ends else None
+            reach = float(np.linalg.norm(tip)) if tip is not None else 0.0
+            ends = [tip * (reach - radius) / reach] if tip is not None and reach > radius else []
+        elif j >= 2:
+            # A frame beyond every child joint (Talos' fingertips, on the wrist beyond the
+            # gripper joint) is reached the same way.
+            tip = max(frames_of[j], key=lambda v: float(np.linalg.norm(v)), default=None)
+            reach = float(np.linalg.norm(tip)) if tip is not None else 0.0
+            beyond = max((float(np.linalg.norm(e)) for e in ends), default=0.0)
+            if tip is not None and reach - radius > beyond + MIN_SEGMENT:
+                ends = [*ends, tip * (reach - radius) / reach]
         for k, end in enumerate(ends):
             length = float(np.linalg.norm(end))
             if length < MIN_SEGMENT:
@@ -57,6 +75,59 @@ def capsule_geometry_model(model: Any, radius: float) -> Any:
                 pin.GeometryObject(f"{model.names[j]}_capsule_{k}", j, placement, shape)
             )
     return gmodel
+
+
+PLATE_THICKNESS = 0.03
+"""m, thickness of the box standing on a patch effector's contact area in ``capsules`` mode."""
+
+
+def add_contact_plates(
+    model: Any, gmodel: Any, patches: list[tuple[int, FloatArray, FloatArray, FloatArray]]
+) -> None:
+    """Add to ``gmodel`` one box per patch effector: its contact area (a sole, a palm)
+    extruded :data:`PLATE_THICKNESS` m along the contact normal, into the body. A capsule
+    chain cannot cover a sole's toe and heel. ``patches``: (effector frame id, half sizes
+    (2,) m along the frame's x and y, normal (3,) unit, contact centre (3,) m), in the
+    effector frame."""
+    for frame_id, half_size, normal, offset in patches:
+        frame = model.frames[frame_id]
+        z = np.asarray(normal, dtype=np.float64)
+        x = np.array([1.0, 0.0, 0.0]) - z[0] * z
+        if np.linalg.norm(x) < 1e-6:
+            x = np.array([0.0, 1.0, 0.0]) - z[1] * z
+        x /= np.linalg.norm(x)
+        local = pin.SE3(np.column_stack([x, np.cross(z, x), z]), offset + z * PLATE_THICKNESS / 2)
+        shape = coal.Box(2.0 * half_size[0], 2.0 * half_size[1], PLATE_THICKNESS)
+        gmodel.addGeometryObject(
+            pin.GeometryObject(
+                f"{frame.name}_plate", int(frame.parentJoint), frame.placement * local, shape
+            )
+        )
+
+
+def add_trunk_shapes(gmodel: Any, shapes: Sequence[Box | Capsule]) -> None:
+    """Add the spec's trunk volumes (boxes and capsules, posed in the root frame) to ``gmodel``
+    on the root joint, named ``trunk_<k>``: in ``capsules`` mode the capsules from the root to
+    the hips leave the body's bulk empty, and a trunk inside the scene would go unseen between
+    states. They are for the scene only (see :func:`drop_trunk_pairs`): a torso that turns on
+    its own joints (Talos) would read as hitting its arms."""
+    for k, shape in enumerate(shapes):
+        if isinstance(shape, Box):
+            geometry = coal.Box(*(2.0 * np.asarray(shape.half_extents)))
+        else:
+            geometry = coal.Capsule(shape.radius, 2.0 * shape.half_length)
+        offset = np.asarray(shape.offset)
+        gmodel.addGeometryObject(
+            pin.GeometryObject(f"trunk_{k}", 1, pin.SE3(offset[:3, :3], offset[:3, 3]), geometry)
+        )
+
+
+def drop_trunk_pairs(gmodel: Any) -> None:
+    """Remove the collision pairs of the shapes added by :func:`add_trunk_shapes`."""
+    names = [str(obj.name) for obj in gmodel.geometryObjects]
+    for pair in list(gmodel.collisionPairs):
+        if names[pair.first].startswith("trunk_") or names[pair.second].startswith("trunk_"):
+            gmodel.removeCollisionPair(pair)
 
 
 def _geometric_parents(model: Any, joints_with_geometry: set[int]) -> dict[int, int]:

@@ -17,7 +17,13 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from planner.character.collision import capsule_geometry_model, set_collision_pairs
+from planner.character.collision import (
+    add_contact_plates,
+    add_trunk_shapes,
+    capsule_geometry_model,
+    drop_trunk_pairs,
+    set_collision_pairs,
+)
 from planner.character.spec import CharacterSpec, LimbSpec, SpecError, read_spec
 from planner.poses import pose_matrix
 from planner.shapes import Box, Capsule
@@ -269,11 +275,23 @@ def load_character(spec_path: str | Path) -> Character:
     q[7:] = np.clip(q[7:], lower, upper)
     limbs = tuple(_limb(model, limb, i) for i, limb in enumerate(spec.limbs))
     q[2] = spec.root_height if spec.root_height is not None else -_lowest_contact_z(model, limbs, q)
+    trunk = _trunk_shapes(spec)
     if spec.self_collision_mode == "urdf":
         geometry = pin.buildGeomFromUrdfString(model, urdf_text, pin.GeometryType.COLLISION)
     else:
         geometry = capsule_geometry_model(model, spec.self_collision_radius)
+        add_contact_plates(
+            model,
+            geometry,
+            [
+                (lb.frame_id, lb.half_size, lb.normal, lb.offset)
+                for lb in limbs
+                if lb.contact == "patch"
+            ],
+        )
+        add_trunk_shapes(geometry, trunk)
     set_collision_pairs(model, geometry, q)
+    drop_trunk_pairs(geometry)
     mass = float(sum(inertia.mass for inertia in model.inertias))
     return Character(
         id=spec.id,
@@ -289,7 +307,7 @@ def load_character(spec_path: str | Path) -> Character:
         lower=_ro(lower),
         upper=_ro(upper),
         limbs=limbs,
-        trunk=_trunk_shapes(spec),
+        trunk=trunk,
     )
 
 

@@ -257,12 +257,11 @@ def plan_contact_motion(
     if status is PlanStatus.TIMEOUT and len(states) > 1:
         status = PlanStatus.APPROXIMATE
     message = sequence.message
-    if status is PlanStatus.SOLVED and motion.quality.cut_short:
-        # SOLVED means every planned phase has keyframes; the budget ran out before that
+    shortfall = motion.quality.shortfall()
+    if status is PlanStatus.SOLVED and shortfall is not None:
+        # SOLVED means every planned phase has keyframes that collide nowhere and hold every
+        # stance contact; a motion short of that is the valid part of a plan
         status = PlanStatus.APPROXIMATE
-        message = (
-            f"keyframes for {motion.quality.phases_animated} of "
-            f"{motion.quality.phases_total} phases: the time budget ran out"
-        )
+        message = f"whole-body motion: {shortfall}"
     stats = {**path.stats, **sequence.stats, "attempts": attempts}
     return PlanResult(status, ContactPlan(states, poses, motion, timings), stats, message)

@@ -66,6 +66,32 @@ class MotionReport:
             and self.max_hold_error <= tuning.HOLD_TOLERANCE
         )
 
+    def shortfall(self) -> str | None:
+        """What keeps the motion from being complete, in words; None when it is."""
+        reasons = []
+        if self.phases_animated < self.phases_total:
+            why = ": the time budget ran out" if self.cut_short else ""
+            reasons.append(
+                f"keyframes for {self.phases_animated} of {self.phases_total} phases{why}"
+            )
+        if self.colliding_keyframes:
+            where = f" ({self.worst_shape} {self.worst_scene_depth * 1000:.0f} mm into the scene)"
+            reasons.append(
+                f"{self.colliding_keyframes} keyframes collide"
+                + (where if self.worst_scene_depth > tuning.PENETRATION_TOLERANCE else "")
+                + (
+                    f", body parts up to {self.worst_self_depth * 1000:.0f} mm into each other"
+                    if self.worst_self_depth > tuning.SELF_PENETRATION_TOLERANCE
+                    else ""
+                )
+            )
+        if self.max_hold_error > tuning.HOLD_TOLERANCE:
+            reasons.append(
+                f"a stance contact slips {self.max_hold_error * 1000:.0f} mm "
+                f"(tolerance {tuning.HOLD_TOLERANCE * 1000:.0f} mm)"
+            )
+        return "; ".join(reasons) or None
+
     def as_dict(self) -> dict[str, Any]:
         """The report as JSON-ready values."""
         return {

@@ -1,7 +1,8 @@
 """Offline data of a character: values, on-disk cache (one .npz, no pickle) and loading.
 
 The cache key hashes everything the data depends on: the URDF text, the spec text, the
-parameters, the seed and :data:`CODE_VERSION` (bump it whenever the computation changes).
+character's collision shapes, the parameters, the seed and :data:`CODE_VERSION` (bump it
+whenever the computation changes).
 """
 
 from __future__ import annotations
@@ -24,8 +25,9 @@ from planner.offline.build import OfflineParams, build_all
 from planner.offline.database import SampleDatabase
 from planner.shapes import ConvexPolytope
 
-CODE_VERSION = "offline-2"
-"""Version of the offline computation; part of the cache key."""
+CODE_VERSION = "offline-3"
+"""Version of the offline computation; part of the cache key (3: capsule-mode shapes end at
+their tip frames, patch effectors carry a contact plate)."""
 
 FloatArray = NDArray[np.float64]
 
@@ -101,12 +103,33 @@ def cache_key(character: Character, params: OfflineParams, seed: int) -> str:
             "id": character.id,
             "urdf": character.urdf_text,
             "spec": character.spec_text,
+            "geometry": _geometry_digest(character),
             "params": params.as_dict(),
             "seed": int(seed),
         },
         sort_keys=True,
     )
     return hashlib.sha256(payload.encode()).hexdigest()
+
+
+def _geometry_digest(character: Character) -> str:
+    """Hex SHA-256 of the character's collision shapes (names, joints, placements, sizes):
+    the limb databases are filtered by self-collision, so the data depends on them."""
+    digest = hashlib.sha256()
+    for obj in character.geometry.geometryObjects:
+        geometry = obj.geometry
+        sizes = [
+            getattr(geometry, name)
+            for name in ("radius", "halfLength", "halfSide")
+            if hasattr(geometry, name)
+        ]
+        placement = np.asarray(obj.placement.homogeneous, dtype=np.float64)
+        digest.update(
+            f"{obj.name}|{int(obj.parentJoint)}|{type(geometry).__name__}|".encode()
+            + np.round(placement, 9).tobytes()
+            + np.round(np.hstack([np.ravel(v) for v in sizes] or [np.zeros(1)]), 9).tobytes()
+        )
+    return digest.hexdigest()
 
 
 def cache_path(character: Character, cache_dir: Path, key: str) -> Path:

@@ -220,3 +220,54 @@ def test_stored_urdfs_match_the_generator(tmp_path: Path) -> None:
     for path in write_all(tmp_path):
         stored = character_spec_path(path.parent.name).with_name(path.name)
         assert stored.read_text() == path.read_text()
+
+
+@pytest.mark.skipif(not real_robot_ids(), reason="example-robot-data is not installed")
+@pytest.mark.parametrize("cid", ["talos", "hyq"])
+def test_capsule_mode_shapes_end_at_the_effectors(cid: str) -> None:
+    """In ``capsules`` mode no shape of a foot hangs below its contact plane (a foot capsule
+    reaching under the sole read as a collision on every swing foot near the ground), and a
+    patch effector's whole contact area is covered by a shape (a sole's toe and heel)."""
+    import coal
+
+    c = get_character(cid)
+    model, geometry = c.model, c.geometry
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, c.q_ref)
+    gdata = pin.GeometryData(geometry)
+    pin.updateGeometryPlacements(model, data, geometry, gdata)
+    for limb in c.limbs:
+        frame = data.oMf[limb.frame_id]
+        normal = frame.rotation @ limb.normal
+        points = (frame.rotation @ limb.contact_points().T).T + frame.translation
+        lowest = np.inf
+        for i, obj in enumerate(geometry.geometryObjects):
+            if int(obj.parentJoint) != int(model.frames[limb.frame_id].parentJoint):
+                continue
+            placement = gdata.oMg[i]
+            halfspace = coal.Halfspace(normal, float(normal @ points[0]))
+            request, result = coal.DistanceRequest(), coal.DistanceResult()
+            request.enable_signed_distance = True
+            shape = coal.Transform3s(placement.rotation, placement.translation)
+            d = coal.distance(obj.geometry, shape, halfspace, coal.Transform3s(), request, result)
+            lowest = min(lowest, d)
+        if limb.name.endswith("foot"):  # Talos' gripper fingers do reach past its palm
+            assert lowest >= -1e-6, limb.name
+        if limb.contact == "patch":
+            assert lowest == pytest.approx(0.0, abs=1e-6) or not limb.name.endswith("foot")
+            covered = [
+                any(
+                    coal.distance(
+                        obj.geometry,
+                        coal.Transform3s(gdata.oMg[i].rotation, gdata.oMg[i].translation),
+                        coal.Sphere(1e-4),
+                        coal.Transform3s(np.eye(3), p + 1e-3 * normal),
+                        coal.DistanceRequest(),
+                        coal.DistanceResult(),
+                    )
+                    <= 1e-3
+                    for i, obj in enumerate(geometry.geometryObjects)
+                )
+                for p in points
+            ]
+            assert all(covered), limb.name

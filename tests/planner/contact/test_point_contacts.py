@@ -92,13 +92,16 @@ def test_hyq_reference_feet_are_tilted_but_contacts_are_consistent() -> None:
 
 @needs_hyq
 def test_hyq_contact_shapes_reach_below_the_sole_by_their_true_depth() -> None:
-    """The shin capsule (radius 4 cm, ending at the foot frame) reaches 4 cm - |offset| below
-    the sphere's lowest point, measured along the ground normal."""
+    """The shin capsule (radius 4 cm) ends at the foot frame, the foot sphere's centre: its
+    axis stops a radius short of the frame. It reaches no lower than the sphere's lowest
+    point, so it needs no extra lift when the foot stands (it hung 4 cm - |offset| below
+    before, and read as a collision on every swing foot near the ground)."""
     hyq = get_character("hyq")
     body = body_geometry(hyq)
     for limb in hyq.limbs:
         (g,) = body.exempt[limb.name]
-        assert body.depth[(limb.name, g)] == pytest.approx(0.04 - point_radius(limb), abs=1e-6)
+        assert point_radius(limb) > 0.0
+        assert body.depth[(limb.name, g)] == pytest.approx(0.0, abs=1e-6)
 
 
 @needs_hyq
