@@ -29,37 +29,29 @@ MIN_SEGMENT = 0.01
 
 def capsule_geometry_model(model: Any, radius: float) -> Any:
     """Per-link capsule approximation: for each joint, one capsule of ``radius`` from its origin
-    to each child joint origin (or, for a leaf, to ``radius`` short of its farthest attached
-    frame, so that the capsule ends at that frame); segments shorter than :data:`MIN_SEGMENT`
-    are skipped. Used for robots whose URDF collision elements are meshes (loading and
-    checking those is slow)."""
+    to each child joint origin, and one toward its farthest attached frame when the joint is a
+    leaf (a sole, a foot point) or that frame lies beyond every child joint (Talos' fingertips,
+    past the gripper joint). Toward a frame, the axis stops ``radius`` short of it, so the
+    capsule's surface, not its axis, ends there. Segments shorter than :data:`MIN_SEGMENT` are
+    skipped. Used for robots whose URDF collision elements are meshes (loading and checking
+    those is slow)."""
     gmodel = pin.GeometryModel()
-    targets: dict[int, list[FloatArray]] = {j: [] for j in range(1, model.njoints)}
+    children: dict[int, list[FloatArray]] = {j: [] for j in range(1, model.njoints)}
     for j in range(2, model.njoints):
-        targets[int(model.parents[j])].append(np.array(model.jointPlacements[j].translation))
-    frames_of: dict[int, list[FloatArray]] = {j: [] for j in range(1, model.njoints)}
+        children[int(model.parents[j])].append(np.array(model.jointPlacements[j].translation))
+    farthest: dict[int, FloatArray] = {}
     for frame in model.frames:
-        j = int(frame.parentJoint)
-        if j >= 1:
-            frames_of[j].append(np.array(frame.placement.translation))
-        if j >= 1 and not any(int(model.parents[c]) == j for c in range(2, model.njoints)):
-            targets[j].append(np.array(frame.placement.translation))
+        j, end = int(frame.parentJoint), np.array(frame.placement.translation)
+        if j >= 2 and np.linalg.norm(end) > np.linalg.norm(farthest.get(j, np.zeros(3))):
+            farthest[j] = end
     for j in range(1, model.njoints):
-        ends = targets[j]
-        if j >= 2 and not any(int(model.parents[c]) == j for c in range(2, model.njoints)):
-            # A leaf reaches its farthest frame (a sole, a foot point) with the capsule's
-            # surface, not its axis: the axis stops ``radius`` short of the tip.
-            tip = max(ends, key=lambda v: float(np.linalg.norm(v))) if ends else None
-            reach = float(np.linalg.norm(tip)) if tip is not None else 0.0
-            ends = [tip * (reach - radius) / reach] if tip is not None and reach > radius else []
-        elif j >= 2:
-            # A frame beyond every child joint (Talos' fingertips, on the wrist beyond the
-            # gripper joint) is reached the same way.
-            tip = max(frames_of[j], key=lambda v: float(np.linalg.norm(v)), default=None)
-            reach = float(np.linalg.norm(tip)) if tip is not None else 0.0
+        ends = list(children[j])
+        tip = farthest.get(j)
+        if tip is not None:
+            reach = float(np.linalg.norm(tip))
             beyond = max((float(np.linalg.norm(e)) for e in ends), default=0.0)
-            if tip is not None and reach - radius > beyond + MIN_SEGMENT:
-                ends = [*ends, tip * (reach - radius) / reach]
+            if (not ends and reach > radius) or (ends and reach - radius > beyond + MIN_SEGMENT):
+                ends.append(tip * (reach - radius) / reach)
         for k, end in enumerate(ends):
             length = float(np.linalg.norm(end))
             if length < MIN_SEGMENT:

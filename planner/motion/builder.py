@@ -75,16 +75,14 @@ class MotionReport:
                 f"keyframes for {self.phases_animated} of {self.phases_total} phases{why}"
             )
         if self.colliding_keyframes:
-            where = f" ({self.worst_shape} {self.worst_scene_depth * 1000:.0f} mm into the scene)"
-            reasons.append(
-                f"{self.colliding_keyframes} keyframes collide"
-                + (where if self.worst_scene_depth > tuning.PENETRATION_TOLERANCE else "")
-                + (
-                    f", body parts up to {self.worst_self_depth * 1000:.0f} mm into each other"
-                    if self.worst_self_depth > tuning.SELF_PENETRATION_TOLERANCE
-                    else ""
+            text = f"{self.colliding_keyframes} keyframes collide"
+            if self.worst_scene_depth > tuning.PENETRATION_TOLERANCE:
+                text += (
+                    f" ({self.worst_shape} {self.worst_scene_depth * 1000:.0f} mm into the scene)"
                 )
-            )
+            if self.worst_self_depth > tuning.SELF_PENETRATION_TOLERANCE:
+                text += f", body parts up to {self.worst_self_depth * 1000:.0f} mm into each other"
+            reasons.append(text)
         if self.max_hold_error > tuning.HOLD_TOLERANCE:
             reasons.append(
                 f"a stance contact slips {self.max_hold_error * 1000:.0f} mm "
