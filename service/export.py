@@ -15,6 +15,7 @@ from planner.export import (
     PhaseMarks,
     SceneMesh,
     bezier_polyline,
+    equilibrium_outline,
     motion_glb,
     parabola,
     phases_from_keyframes,
@@ -51,43 +52,108 @@ def keyframe_arrays(
     return times, qs, [list(k.get("contacts", [])) for k in keyframes]
 
 
-def _phase_marks(phases: list[dict[str, Any]]) -> tuple[PhaseMarks, ...]:
+OUTLINE_LIFT = 0.005  # m: equilibrium outlines float this far above the lowest contact
+ContactTriple = tuple[FloatArray, FloatArray, float]  # points (k, 3), normal (3,), mu
+
+
+def _outline(contacts: list[ContactTriple], mass: float) -> FloatArray:
+    """The phase's equilibrium outline, drawn just above its lowest contact point."""
+    if not contacts:
+        return np.zeros((0, 3))
+    height = float(np.min(np.vstack([p for p, _, _ in contacts])[:, 2])) + OUTLINE_LIFT
+    try:
+        return equilibrium_outline(contacts, mass, height)
+    except ValueError:  # a stored contact the trajectory library refuses: draw no outline
+        return np.zeros((0, 3))
+
+
+def _phase_marks(phases: list[dict[str, Any]], mass: float) -> tuple[PhaseMarks, ...]:
+    """Plan or step phases with their contact points and equilibrium outline."""
     marks = []
     for phase in phases:
         contacts = phase["contacts"]
+        triples: list[ContactTriple] = [
+            (
+                np.asarray(c["points"], dtype=np.float64).reshape(-1, 3),
+                np.asarray(c["normal"], dtype=np.float64),
+                float(c["mu"]),
+            )
+            for c in contacts
+        ]
+        t0, t1 = float(phase["t0"]), float(phase["t1"])
         points = [p for c in contacts for p in c["points"]]
         marks.append(
             PhaseMarks(
-                t0=float(phase["t0"]),
-                t1=float(phase["t1"]),
+                t0=t0,
+                t1=t1,
                 limbs=tuple(c["limb"] for c in contacts),
                 points=np.asarray(points, dtype=np.float64).reshape(-1, 3),
+                equilibrium=_outline(triples, mass),
             )
         )
     return tuple(marks)
 
 
+def _jump_phase_marks(
+    character: Character, jumps: list[dict[str, Any]], marks: tuple[PhaseMarks, ...]
+) -> tuple[PhaseMarks, ...]:
+    """Keyframe phases of a jump answer with their equilibrium outlines: each limb's normal
+    and friction are those of the nearest take-off or landing contact of the same limb."""
+    known: dict[str, list[tuple[FloatArray, FloatArray, float]]] = {}
+    for jump in jumps:
+        for end in (jump["takeoff"], jump["landing"]):
+            for c in end["contacts"]:
+                entry = (
+                    np.asarray(c["point"], dtype=np.float64),
+                    np.asarray(c["normal"], dtype=np.float64),
+                    float(c["mu"]),
+                )
+                known.setdefault(c["limb"], []).append(entry)
+    out = []
+    for mark in marks:
+        triples: list[ContactTriple] = []
+        offset = 0
+        for limb in mark.limbs:
+            count = len(character.limb(limb).contact_points())
+            points = mark.points[offset : offset + count]
+            offset += count
+            candidates = known.get(limb)
+            if not candidates:
+                triples = []
+                break
+            centre = points.mean(axis=0)
+            _, normal, mu = min(candidates, key=lambda e: float(np.linalg.norm(e[0] - centre)))
+            triples.append((points, normal, mu))
+        outline = _outline(triples, float(character.mass))
+        out.append(PhaseMarks(mark.t0, mark.t1, mark.limbs, mark.points, outline))
+    return tuple(out)
+
+
 def overlays_of(
     result: StoredResult, character: Character, times: FloatArray, qs: FloatArray, contacts: Any
 ) -> Overlays:
-    """COM curve (plans, steps) or jump parabolas (jumps), and the contact phases."""
+    """COM curve (plans, steps) or jump parabolas (jumps), and the contact phases with
+    their static-equilibrium outlines."""
     response = result.response
     if result.kind == "jump":
+        jumps = response.get("jumps", [])
         arcs = tuple(
             parabola(
                 np.asarray(j["takeoff"]["position"], dtype=np.float64),
                 np.asarray(j["takeoff"]["velocity"], dtype=np.float64),
                 float(j["duration"]),
             )
-            for j in response.get("jumps", [])
+            for j in jumps
         )
-        return Overlays(arcs, phases_from_keyframes(character, times, qs, contacts))
+        marks = phases_from_keyframes(character, times, qs, contacts)
+        return Overlays(arcs, _jump_phase_marks(character, jumps, marks))
     segments = [
         (float(s["t0"]), float(s["t1"]), np.asarray(s["control_points"], dtype=np.float64))
         for s in response.get("com", [])
     ]
     com = bezier_polyline(segments)
-    return Overlays((com,) if len(com) >= 2 else (), _phase_marks(response.get("phases", [])))
+    phases = _phase_marks(response.get("phases", []), float(character.mass))
+    return Overlays((com,) if len(com) >= 2 else (), phases)
 
 
 def timeline(overlays: Overlays) -> list[dict[str, Any]]:

@@ -12,6 +12,7 @@ from planner.export.gltf import (
 from planner.export.overlays import (
     bezier_polyline,
     contact_points,
+    equilibrium_outline,
     parabola,
     phases_from_keyframes,
 )
@@ -24,6 +25,7 @@ __all__ = [
     "SceneMesh",
     "bezier_polyline",
     "contact_points",
+    "equilibrium_outline",
     "motion_glb",
     "parabola",
     "phases_from_keyframes",

@@ -11,7 +11,8 @@ geometry as meshes on child nodes, and one animation ``motion`` with the root li
 translation and rotation and every moving link's rotation (translation for prismatic joints)
 sampled at the keyframe times (linear interpolation; glTF's linear rotation is a slerp).
 Optional extra nodes: ``scene`` (the scene mesh), ``com`` (line strips: the COM curve, jump
-parabolas) and ``contacts`` (one child per contact phase holding its contact points).
+parabolas) and ``contacts`` (one child per contact phase holding its contact points, and a
+child ``equilibrium_k`` with the line loop of its static-equilibrium COM region).
 """
 
 from __future__ import annotations
@@ -64,15 +65,18 @@ class ExportError(ValueError):
 
 @dataclass(frozen=True, slots=True)
 class PhaseMarks:
-    """A contact phase drawn in the file: [t0, t1] s, its limbs, its contact points.
+    """A contact phase drawn in the file: [t0, t1] s, its limbs, its contact points and the
+    outline of its static-equilibrium COM region.
 
-    points : (k, 3) contact points, world frame (z up), metres.
+    points : (k, 3) contact points; equilibrium : (m, 3) closed outline, (0, 3) when not
+    drawn. World frame (z up), metres.
     """
 
     t0: float
     t1: float
     limbs: tuple[str, ...]
     points: FloatArray
+    equilibrium: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
 
 
 @dataclass(frozen=True, slots=True)
@@ -560,6 +564,7 @@ def _add_overlays(builder: _Builder, overlays: Overlays) -> list[int]:
         roots.append(builder.node(pygltflib.Node(name="com", mesh=mesh)))
     if overlays.phases:
         material = builder.material((0.1, 0.45, 0.95, 1.0), "contacts")
+        balance = builder.material((0.1, 0.7, 0.25, 1.0), "equilibrium")
         children = []
         for index, phase in enumerate(overlays.phases):
             node = pygltflib.Node(name=f"phase_{index:03d}")
@@ -569,6 +574,16 @@ def _add_overlays(builder: _Builder, overlays: Overlays) -> list[int]:
                 node.mesh = builder.point_mesh(
                     f"contacts_{index:03d}", [_world_points(points)], pygltflib.POINTS, material
                 )
+            outline = np.asarray(phase.equilibrium, dtype=np.float64).reshape(-1, 3)
+            if len(outline) >= 3:
+                polygon = builder.point_mesh(
+                    f"equilibrium_{index:03d}",
+                    [_world_points(outline)],
+                    pygltflib.LINE_LOOP,
+                    balance,
+                )
+                name = f"equilibrium_{index:03d}"
+                node.children = [builder.node(pygltflib.Node(name=name, mesh=polygon))]
             children.append(builder.node(node))
         roots.append(builder.node(pygltflib.Node(name="contacts", children=children)))
     return roots

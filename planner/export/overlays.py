@@ -1,5 +1,6 @@
 """What a viewer draws beside the body, computed from a motion: COM polylines, jump
-parabolas, contact phases with their contact points. All in Gecko's world (z up), metres."""
+parabolas, contact phases with their contact points and static-equilibrium polygons. All in
+Gecko's world (z up), metres."""
 
 from __future__ import annotations
 
@@ -8,7 +9,10 @@ from collections.abc import Sequence
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
+from scipy.optimize import linprog
+from scipy.spatial import ConvexHull, HalfspaceIntersection
 
+import trajectory
 from planner.character import Character
 from planner.export.gltf import PhaseMarks
 from trajectory.bezier import BezierCurve
@@ -18,6 +22,8 @@ FloatArray = NDArray[np.float64]
 GRAVITY = np.array([0.0, 0.0, -9.81])
 SAMPLES_PER_SECOND = 60.0
 MAX_SAMPLES_PER_CURVE = 2_000
+EQUILIBRIUM_DRAW_RADIUS = 3.0  # m: unbounded equilibrium regions are drawn clipped to this
+MIN_EQUILIBRIUM_WIDTH = 1e-4  # m: thinner regions (a point, a segment) are not drawn
 
 
 def bezier_polyline(segments: Sequence[tuple[float, float, FloatArray]]) -> FloatArray:
@@ -82,3 +88,44 @@ def phases_from_keyframes(
         phases.append(PhaseMarks(float(times[start]), t1, limbs, points))
         start = k
     return tuple(phases)
+
+
+def equilibrium_outline(
+    contacts: Sequence[tuple[FloatArray, FloatArray, float]], mass: float, height: float
+) -> FloatArray:
+    """The static-equilibrium COM region of a contact phase as a closed outline (m, 3).
+
+    contacts : (points (k, 3), unit normal (3,), friction coefficient) per contact, world
+    frame, metres. Under gravity alone the region is a vertical prism over a convex polygon
+    (``trajectory.equilibrium_polygon``); the outline is that polygon, counter-clockwise,
+    at z = ``height``, clipped to a square of half-side ``EQUILIBRIUM_DRAW_RADIUS`` about
+    the contacts' centroid. Empty (0, 3) when the region is empty or thinner than
+    ``MIN_EQUILIBRIUM_WIDTH``, or there are no contacts.
+    """
+    if not contacts:
+        return np.zeros((0, 3))
+    phase = trajectory.ContactPhase(
+        [trajectory.Contact(points=p, normal=n, mu=mu) for p, n, mu in contacts], mass=mass
+    )
+    polygon = trajectory.equilibrium_polygon(phase)
+    centre = np.vstack([np.asarray(p, dtype=np.float64).reshape(-1, 3) for p, _, _ in contacts])
+    centre_xy = centre.mean(axis=0)[:2]
+    box = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
+    A = np.vstack([polygon.A, box])
+    b = np.concatenate([polygon.b, box @ centre_xy + EQUILIBRIUM_DRAW_RADIUS])
+    # Chebyshev centre: max r such that A x + r |a_i| <= b, the interior point the
+    # half-space intersection needs.
+    norms = np.linalg.norm(A, axis=1)
+    found = linprog(
+        c=[0.0, 0.0, -1.0],
+        A_ub=np.hstack([A, norms[:, None]]),
+        b_ub=b,
+        bounds=[(None, None), (None, None), (0.0, None)],
+        method="highs",
+    )
+    if not found.success or found.x[2] < MIN_EQUILIBRIUM_WIDTH / 2:
+        return np.zeros((0, 3))
+    corners = HalfspaceIntersection(np.hstack([A, -b[:, None]]), found.x[:2]).intersections
+    hull = ConvexHull(corners)
+    outline = corners[hull.vertices]  # counter-clockwise in 2D
+    return np.column_stack([outline, np.full(len(outline), float(height))])

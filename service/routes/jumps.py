@@ -9,7 +9,7 @@ from typing import Any
 
 from anyio import to_thread
 from fastapi import APIRouter, Request
-from fastapi.responses import JSONResponse, Response
+from fastapi.responses import JSONResponse
 
 from planner.ballistic.planner import RoadmapStore
 from service import compute
@@ -120,5 +120,6 @@ async def get_jumps(
     overlays: OverlaysQuery = False,
 ) -> Any:
     """A stored jump answer by id: JSON, or ``/v1/jumps/{id}.glb`` (glTF 2.0)."""
-    answer = await stored_answer(request, registry, "jump", jump_id, format, scene, overlays)
-    return answer if isinstance(answer, Response) else JumpResponse.model_validate(answer)
+    return await stored_answer(
+        request, registry, "jump", jump_id, format, scene, overlays, JumpResponse
+    )

@@ -6,7 +6,6 @@ import secrets
 from typing import Any
 
 from fastapi import APIRouter, Request
-from fastapi.responses import Response
 
 from service import compute
 from service.deps import RegistryDep
@@ -52,5 +51,6 @@ async def get_plan(
     overlays: OverlaysQuery = False,
 ) -> Any:
     """A stored plan by id: ``/v1/plans/{id}`` (JSON) or ``/v1/plans/{id}.glb`` (glTF 2.0)."""
-    answer = await stored_answer(request, registry, "plan", plan_id, format, scene, overlays)
-    return answer if isinstance(answer, Response) else PlanResponse.model_validate(answer)
+    return await stored_answer(
+        request, registry, "plan", plan_id, format, scene, overlays, PlanResponse
+    )

@@ -3,12 +3,12 @@ GLB (the routes of each kind call :func:`stored_answer`)."""
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, TypeVar
 
 from anyio import to_thread
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import Response
-from pydantic import BaseModel
+from pydantic import BaseModel, ValidationError
 
 from service.deps import RegistryDep
 from service.errors import ApiError, not_found
@@ -16,6 +16,7 @@ from service.export import result_glb
 from service.results import Kind, ResultStore, StoredResult, result_id
 from service.schemas import ErrorBody, ResultSummary
 
+Answer = TypeVar("Answer", bound=BaseModel)
 router = APIRouter(prefix="/v1", tags=["results"])
 Format = Literal["json", "glb"]
 KIND_NAMES: dict[Kind, str] = {"plan": "plan", "step": "Twister step", "jump": "jump"}
@@ -26,6 +27,7 @@ RESULT_RESPONSES: dict[int | str, dict[str, Any]] = {
     400: {"model": ErrorBody, "description": "the suffix and ?format= disagree"},
     404: {"model": ErrorBody, "description": "unknown (or evicted) result id"},
     409: {"model": ErrorBody, "description": "GLB of a result without keyframes"},
+    410: {"model": ErrorBody, "description": "stored by a Gecko version this one cannot read"},
     422: {"model": ErrorBody, "description": "invalid format"},
 }
 FormatQuery = Annotated[
@@ -81,6 +83,13 @@ def _split(reference: str, format: Format | None) -> tuple[str, Format]:
     return rid, chosen
 
 
+def _unreadable(stored: StoredResult) -> ApiError:
+    """410 for a stored result whose shape this code no longer reads (an older version's)."""
+    message = f"{KIND_NAMES[stored.kind]} {stored.id} was stored by a Gecko version this one "
+    message += "cannot read; send the request again to get it from this version"
+    return ApiError(410, "stored_by_other_version", message, "id")
+
+
 async def stored_answer(
     request: Request,
     registry: RegistryDep,
@@ -89,17 +98,30 @@ async def stored_answer(
     format: Format | None,
     scene: bool,
     overlays: bool,
-) -> dict[str, Any] | Response:
-    """A stored result: its JSON answer (a dict) or its GLB (a Response)."""
+    model: type[Answer],
+) -> Answer | Response:
+    """A stored result: its JSON answer validated as ``model``, or its GLB (a Response).
+
+    404 for an unknown id, 410 when the stored answer no longer fits this code's shapes.
+    """
     rid, chosen = _split(reference, format)
     stored = await to_thread.run_sync(store_of(request).get, rid, kind)
     if stored is None:
         raise not_found(KIND_NAMES[kind], rid, "id")
+    try:
+        answer = model.model_validate(stored.response)
+    except ValidationError as exc:
+        raise _unreadable(stored) from exc
     if chosen == "json":
-        return stored.response
-    data = await to_thread.run_sync(
-        lambda: result_glb(registry, stored, with_scene=scene, with_overlays=overlays)
-    )
+        return answer
+
+    def export() -> bytes:
+        try:
+            return result_glb(registry, stored, with_scene=scene, with_overlays=overlays)
+        except (KeyError, TypeError, IndexError) as exc:  # a shape older code wrote
+            raise _unreadable(stored) from exc
+
+    data = await to_thread.run_sync(export)
     filename = f"{kind}-{rid}.glb"
     return Response(
         data,

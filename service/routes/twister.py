@@ -6,7 +6,6 @@ import secrets
 from typing import Any
 
 from fastapi import APIRouter, Request
-from fastapi.responses import Response
 
 from service import compute
 from service.deps import RegistryDep
@@ -57,5 +56,6 @@ async def get_step(
     overlays: OverlaysQuery = False,
 ) -> Any:
     """A stored Twister step by id: JSON, or ``/v1/twister/steps/{id}.glb`` (glTF 2.0)."""
-    answer = await stored_answer(request, registry, "step", step_id, format, scene, overlays)
-    return answer if isinstance(answer, Response) else TwisterStepResponse.model_validate(answer)
+    return await stored_answer(
+        request, registry, "step", step_id, format, scene, overlays, TwisterStepResponse
+    )

@@ -21,6 +21,7 @@ import pytest
 
 from planner.character import get_character
 from service.results import ResultStore, StoredResult
+from service.settings import Settings
 from tests.gltf_reader import TO_Y_UP, accessor, world_transforms
 from tests.gltf_validator import errors_of, validate
 from tests.live_fixtures import LIVE_PLAN
@@ -117,6 +118,15 @@ def test_glb_has_one_node_per_link_and_the_phases(
     ]
     assert len(gltf.animations) == 1
     assert len(gltf.animations[0].channels) == len(character.joint_names) + 2
+    # Each standing phase carries its equilibrium outline: a horizontal loop (constant
+    # glTF y) around the phase's contact points seen from above.
+    outlines = [k for k, name in enumerate(names) if name.startswith("equilibrium_")]
+    assert len(outlines) >= len(body["phases"]) // 2
+    for index in outlines:
+        primitive = gltf.meshes[gltf.nodes[index].mesh].primitives[0]
+        assert primitive.mode == pygltflib.LINE_LOOP
+        loop = accessor(gltf, gltf.binary_blob(), primitive.attributes.POSITION)
+        assert len(loop) >= 3 and np.ptp(loop[:, 1]) < 1e-6
 
 
 def test_scene_glb_is_y_up(gecko_url: str) -> None:
@@ -212,6 +222,23 @@ def test_store_evicts_least_recently_used(tmp_path: Path) -> None:
         small.put(StoredResult("plan", f"{k:032x}", {}, {"blob": "y" * 100_000}), {})
     total = sum(p.stat().st_size for p in (tmp_path / "small").glob("*.json"))
     assert total <= 2 * 1024 * 1024
+
+
+@pytest.mark.anyio
+async def test_result_stored_by_an_older_version_answers_410(
+    client: httpx.AsyncClient, settings: Settings
+) -> None:
+    """A stored answer this code cannot read (another version's shape) is 410, never 500."""
+    store = ResultStore(settings.results_path, max_count=10, max_bytes=10**6)
+    rid = "ab" * 16
+    request = {"character": "humanoid", "scene": "flat", "seed": 1}
+    old = StoredResult("plan", rid, request, {"status": "SOLVED", "keyframes": [{"t": 0.0}]})
+    assert store.put(old, {})
+    for suffix in ("", ".glb"):
+        response = await client.get(f"/v1/plans/{rid}{suffix}")
+        assert response.status_code == 410, response.text
+        assert response.json()["error"]["field"] == "id"
+    assert (await client.get(f"/v1/plans/{'cd' * 16}")).status_code == 404
 
 
 def test_result_without_keyframes_has_no_glb(gecko_url: str) -> None:

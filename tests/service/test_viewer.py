@@ -154,6 +154,45 @@ def test_timeline_lists_the_plans_phases(
     assert _console_errors(browser) == []
 
 
+def test_viewer_draws_the_current_phases_equilibrium_region(
+    browser: Any, gecko_url: str, live_results: dict[str, dict[str, Any]]
+) -> None:
+    """Mid-phase, the outline on screen is a convex loop around the COM's (x, y): the
+    planned COM is in static equilibrium in a standing plan's phases."""
+    plan = live_results["plan"]
+    _open(browser, f"{gecko_url}/viewer?plan={plan['id']}")
+    drawn = 0
+    for index, phase in enumerate(plan["phases"]):
+        middle = 0.5 * (phase["t0"] + phase["t1"])
+        _scrub(browser, middle)
+        assert int(browser.execute_script("return document.body.dataset.phase")) == index
+        outline = np.asarray(browser.execute_script("return window.gecko.equilibrium"))
+        if len(outline) == 0:
+            continue
+        drawn += 1
+        # glTF (x, y, z) -> Gecko (x, -z, y): the loop is horizontal in Gecko's world.
+        loop = np.column_stack([outline[:, 0], -outline[:, 2]])
+        assert np.ptp(outline[:, 1]) < 1e-6
+        com = _com_at(plan["com"], middle)
+        edges = np.roll(loop, -1, axis=0) - loop
+        cross = edges[:, 0] * (com[1] - loop[:, 1]) - edges[:, 1] * (com[0] - loop[:, 0])
+        assert np.all(cross >= -1e-3) or np.all(cross <= 1e-3), (index, loop, com)
+    assert drawn >= len(plan["phases"]) // 2
+    assert _console_errors(browser) == []
+
+
+def _com_at(segments: list[dict[str, Any]], t: float) -> np.ndarray:
+    """The COM (3,) at t on the plan's Bezier segments (de Casteljau, written here)."""
+    for segment in segments:
+        if segment["t0"] <= t <= segment["t1"]:
+            points = np.asarray(segment["control_points"], dtype=np.float64)
+            s = (t - segment["t0"]) / max(segment["t1"] - segment["t0"], 1e-12)
+            while len(points) > 1:
+                points = (1 - s) * points[:-1] + s * points[1:]
+            return points[0]
+    raise AssertionError(f"no COM segment covers t = {t}")
+
+
 @pytest.mark.parametrize("kind", ["step", "jump"])
 def test_viewer_opens_steps_and_jumps(
     browser: Any, gecko_url: str, live_results: dict[str, dict[str, Any]], kind: str

@@ -71,7 +71,8 @@ function clear() {
 }
 
 // Contact points of each phase (the GLB's 'contacts' node, one Points child per phase)
-// drawn as small spheres, shown while their phase is current.
+// drawn as small spheres, and the outline of the phase's static-equilibrium COM region
+// (a LineLoop under the phase node), both shown while their phase is current.
 function contactSpheres(contacts) {
   const groups = [];
   const geometry = new THREE.SphereGeometry(CONTACT_RADIUS, 12, 8);
@@ -79,7 +80,9 @@ function contactSpheres(contacts) {
   for (const phase of contacts ? contacts.children : []) {
     const group = new THREE.Group();
     phase.updateWorldMatrix(true, true);
+    const outlines = [];
     phase.traverse((object) => {
+      if (object.isLine) outlines.push(object);
       if (!object.isPoints) return;
       object.visible = false;
       const positions = object.geometry.getAttribute('position');
@@ -89,6 +92,15 @@ function contactSpheres(contacts) {
         group.add(sphere);
       }
     });
+    for (const outline of outlines) {
+      const copy = outline.clone();
+      copy.matrixAutoUpdate = false;
+      copy.matrix.copy(outline.matrixWorld);
+      copy.material = new THREE.LineBasicMaterial({ color: 0x1fb040 });
+      copy.name = 'equilibrium';
+      outline.visible = false;
+      group.add(copy);
+    }
     group.visible = false;
     world.add(group);
     groups.push(group);
@@ -340,6 +352,21 @@ window.gecko = {
   get phases() { return view.phases; },
   get firstPaintMs() { return view.firstPaintMs; }, // ms from opening the GLB to its first frame
   get paintedAt() { return view.paintedAt; }, // ms from the page's navigation to that frame
+  // The equilibrium outline on screen (glTF frame, metres), [] when none is shown.
+  get equilibrium() {
+    const out = [];
+    for (const group of view.contactGroups) {
+      if (!group.visible) continue;
+      for (const line of group.children.filter((child) => child.isLine)) {
+        const positions = line.geometry.getAttribute('position');
+        for (let k = 0; k < positions.count; k++) {
+          const p = new THREE.Vector3().fromBufferAttribute(positions, k).applyMatrix4(line.matrix);
+          out.push([p.x, p.y, p.z]);
+        }
+      }
+    }
+    return out;
+  },
 };
 
 animate();
