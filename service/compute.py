@@ -26,6 +26,7 @@ from planner.contact.one_step import StepAction, twister_step
 from planner.contact.planner import Endpoint, PlanOptions, plan_contact_motion
 from planner.contact.sequence import SequenceParams
 from planner.contact.standing import standing_state
+from planner.motion.sequence import Timing
 from planner.poses import normalize_quaternion, pose_matrix, quaternion_to_matrix
 from planner.scene import Scene
 from planner.termination import Deadline
@@ -33,6 +34,18 @@ from service import convert, schemas
 from service.errors import ApiError, not_found
 from service.registry import CharacterEntry, Registry
 from service.workers import worker_registry, worker_settings
+from trajectory import TransitionCost
+
+
+def timing_of(options: schemas.PlanOptionsIn) -> Timing:
+    """The planner's COM timing from a request's options (bounds checked by the schema)."""
+    return Timing(
+        speed=options.speed,
+        cost=TransitionCost(options.transition_cost, strength=options.cost_strength),
+        attractors=tuple(
+            (a.transition, np.asarray(a.point, dtype=np.float64)) for a in options.attractors
+        ),
+    )
 
 
 def character_entry(character_id: str) -> CharacterEntry:
@@ -97,6 +110,7 @@ def run_plan(request_json: str, seed: int) -> dict[str, Any]:
         ),
         contact=ContactParams(margin=request.options.margin),
         max_pitch=request.options.max_pitch,
+        timing=timing_of(request.options),
     )
     result = plan_contact_motion(
         scene,

@@ -372,6 +372,20 @@ class JumpResponse(BaseModel):
 MAX_PITCH = 0.8  # rad, planner.character.MAX_PITCH (clients import this module, not planner)
 
 
+MIN_SPEED, MAX_SPEED = 0.25, 3.0  # planner.motion.sequence's bounds on options.speed
+TransitionCostKind = Literal["distance", "tired", "groovy", "to_one_side", "low"]
+
+
+class AttractorIn(BaseModel):
+    """A transition point placed by the user (2PAC section 7.3): where the COM passes when
+    phase change ``transition`` happens (0 is the first contact change of the plan)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    transition: int = Field(ge=0, le=10_000)
+    point: Point3
+
+
 class PlanOptionsIn(BaseModel):
     """Tuning of a contact plan; every field has a bound."""
 
@@ -394,6 +408,28 @@ class PlanOptionsIn(BaseModel):
         default_factory=list,
         max_length=16,
         description="limbs the walk may use besides those of the start and goal (a hand on a rail)",
+    )
+    speed: float = Field(
+        default=1.0,
+        ge=MIN_SPEED,
+        le=MAX_SPEED,
+        description="factor on the nominal pace of the COM and of the swings; "
+        "the report's dynamic_validity says how physical the result is",
+    )
+    transition_cost: TransitionCostKind = Field(
+        default="tired",
+        description="how transition points are chosen (2PAC 7.3): distance (closest to the "
+        "previous), tired (least travel over both neighbours), groovy (alternating "
+        "sideways), to_one_side, low (COM as low as possible)",
+    )
+    cost_strength: float = Field(
+        default=0.3, ge=0, le=2.0, description="m, weight of the groovy/to_one_side/low terms"
+    )
+    attractors: list[AttractorIn] = Field(
+        default_factory=list,
+        max_length=64,
+        description="user-placed transition points; each is honoured when balanced and "
+        "reachable for both phases, else refused (report.attractors says why)",
     )
 
 

@@ -216,6 +216,9 @@ class ComTrajectory:
     transitions : one TransitionPoint per phase change.
     phase_times : (n_phases + 1,) start time of each phase and the end time, s.
     reports : per-phase dynamic validation (empty when validation was skipped).
+    phase_methods : per phase, "2pac" (an attractor window of the sliding window) or
+    "rest_to_rest" (its window fell back to stopping at the transition points because no
+    stretch of the window gave the phase its minimum duration, see ``plan_com_trajectory``).
     """
 
     curve: PiecewiseBezier
@@ -223,6 +226,7 @@ class ComTrajectory:
     phase_times: FloatArray
     reports: tuple[PhaseReport, ...]
     method: str
+    phase_methods: tuple[str, ...] = ()
 
     @property
     def segments(self) -> tuple[BezierCurve, ...]:
@@ -296,6 +300,10 @@ def plan_com_trajectory(
     n_checks: int = 10,
     duration: float | None = None,
     user_transitions: Sequence[FloatArray | None] | None = None,
+    targets: Sequence[FloatArray | None] | None = None,
+    min_durations: Sequence[float] | None = None,
+    max_stretch: float = 4.0,
+    max_speed: float = math.inf,
 ) -> ComTrajectory:
     """Phases + start COM (+ end COM) -> COM trajectory with its transitions and report.
 
@@ -312,6 +320,14 @@ def plan_com_trajectory(
     contact points (no polytope is computed; distance cost only), which is faster and
     exact when consecutive contact sets are nested; "auto" picks "generators" when the
     cost is the default distance and every change adds or removes contacts, else "polytope".
+    targets: one entry per phase change, the point the "tired", "groovy" and "to_one_side"
+    costs aim at (None: the end COM for the last change, no target otherwise).
+    min_durations: one entry per phase, s (2pac only): each window of the sliding window is
+    slowed down until every phase it decides lasts at least its minimum (a swing needs its
+    time); a window that would need more than ``max_stretch`` times its nominal duration
+    falls back to rest-to-rest segments through its transition points with those durations
+    (``phase_methods`` says which phases did). max_speed: m/s (2pac only), each window is
+    also slowed down until the COM speed stays under it.
     """
     phases = list(phases)
     if not phases:
@@ -346,10 +362,22 @@ def plan_com_trajectory(
 
     if user_transitions is not None and len(user_transitions) != len(phases) - 1:
         raise ValueError("user_transitions: one entry per phase change is needed")
+    if targets is not None and len(targets) != len(phases) - 1:
+        raise ValueError("targets: one entry per phase change is needed")
+    if min_durations is not None and len(min_durations) != len(phases):
+        raise ValueError("min_durations: one entry per phase is needed")
+    if min_durations is not None and not all(np.isfinite(d) and d >= 0.0 for d in min_durations):
+        raise ValueError("min_durations: must be finite and >= 0")
+    if not max_speed > 0:
+        raise ValueError(f"max_speed: must be positive, got {max_speed}")
+    if not (np.isfinite(max_stretch) and max_stretch >= 1.0):
+        raise ValueError(f"max_stretch: must be >= 1, got {max_stretch}")
     transitions: list[TransitionPoint] = []
     c_prev = start
     for j in range(len(phases) - 1):
         tgt = end if (end is not None and j == len(phases) - 2) else None
+        if targets is not None and targets[j] is not None:
+            tgt = as_float_array(targets[j], (3,), f"targets[{j}]")
         placed = None if user_transitions is None else user_transitions[j]
         if placed is not None:
             pair = [equilibrium_halfspaces(phases[j]), equilibrium_halfspaces(phases[j + 1])]
@@ -385,10 +413,19 @@ def plan_com_trajectory(
         phase_times[-1] = curve.t1
         if len(phases) == 1:
             phase_times = np.array([curve.t0, curve.t1])
+        phase_methods = ("quasi_static",) * len(phases)
     else:
-        curve, phase_times = _sliding_window(
-            phases, eqs, kins, start, tpts, final, seconds_per_metre, min_window
+        window = _Window(
+            eqs,
+            kins,
+            seconds_per_metre,
+            min_window,
+            np.zeros(len(phases)) if min_durations is None else np.asarray(min_durations),
+            max_stretch,
+            max_acceleration,
+            max_speed,
         )
+        curve, phase_times, phase_methods = _sliding_window(window, start, tpts, final)
     if duration is not None:
         scale = duration / (curve.t1 - curve.t0)
         curve = PiecewiseBezier(
@@ -396,20 +433,148 @@ def plan_com_trajectory(
         )
         phase_times = phase_times * scale
     reports = validate_dynamics(curve, phases, phase_times, n_checks) if n_checks > 0 else ()
-    return ComTrajectory(curve, tuple(transitions), phase_times, reports, method)
+    return ComTrajectory(curve, tuple(transitions), phase_times, reports, method, phase_methods)
+
+
+@dataclass(frozen=True, slots=True)
+class _Window:
+    """What every window of the sliding window needs: per phase equilibrium and kinematic
+    sets and minimum durations (s); the nominal pace (s per metre of control polygon, at
+    least ``min_window`` s per window), the largest slow-down before a window falls back,
+    and the peak acceleration (m/s^2) of the fallback's rest-to-rest segments."""
+
+    eqs: Sequence[Halfspaces]
+    kins: Sequence[Halfspaces]
+    seconds_per_metre: float
+    min_window: float
+    min_durations: FloatArray
+    max_stretch: float
+    max_acceleration: float
+    max_speed: float
+
+
+def _window_curve(
+    w: _Window,
+    state: BoundaryState,
+    att: FloatArray,
+    goal: FloatArray,
+    j: int,
+    t: float,
+    phase_start: float,
+    last: bool,
+) -> tuple[BezierCurve, float, list[float]] | None:
+    """The shortest attractor curve of the window over phases j..j+len(att) starting at t
+    (phase j began at ``phase_start``) that gives each phase it decides its minimum
+    duration: (curve, cut time, switch times), or None when none does within
+    ``max_stretch`` times the nominal duration.
+
+    Candidates differ by extra control points spread on the segment after the first
+    attractor (toward the second one, or toward the goal in the last window): the curve
+    lingers there, which gives that phase (a swing) a larger share of the window. The
+    points lie between two points of the phase's convex feasible set, so inside it.
+    """
+    best: tuple[BezierCurve, float, list[float]] | None = None
+    after = att[1] if len(att) > 1 else goal
+    for extra in range(MAX_EXTRA_ATTRACTORS + 1):
+        fractions = np.arange(1, extra + 1) / (extra + 1)
+        middle = att[0] + fractions[:, None] * (after - att[0])
+        points = np.vstack([att[:1], middle, att[1:]])
+        found = _stretched_curve(w, state, points, att, goal, j, t, phase_start, last)
+        if found is not None and (best is None or found[0].t1 < best[0].t1):
+            best = found
+    return best
+
+
+MAX_EXTRA_ATTRACTORS = 8
+"""Extra control points tried between a window's first attractor and the next point."""
+
+
+def _stretched_curve(
+    w: _Window,
+    state: BoundaryState,
+    points: FloatArray,
+    att: FloatArray,
+    goal: FloatArray,
+    j: int,
+    t: float,
+    phase_start: float,
+    last: bool,
+) -> tuple[BezierCurve, float, list[float]] | None:
+    """The window's curve through control points ``points`` (its attractors ``att`` among
+    them), slowed down until each phase gets its minimum duration; None beyond
+    ``max_stretch`` times the nominal duration."""
+    m = len(att)
+    ctrl = np.vstack([state.position, points, goal])
+    length = float(np.sum(np.linalg.norm(np.diff(ctrl, axis=0), axis=1)))
+    nominal = max(w.min_window, w.seconds_per_metre * length)
+    duration = nominal
+    for _ in range(8):
+        curve = attractor_curve(state, BoundaryState(goal), points, duration, t)
+        cut = curve.t1
+        if not last:
+            target_set = stack([w.eqs[j + m], w.kins[j + m]])
+            taus = np.linspace(0.6, 0.95, 15)
+            inside = target_set.violation(curve(t + taus * duration)) <= 1e-9
+            if np.any(inside):
+                cut = t + float(taus[int(np.argmax(inside))]) * duration
+        switches = []
+        lo = t
+        for a in att:
+            lo = _closest_time(curve, a, lo, cut)
+            switches.append(lo)
+        # (time the phase gets, its minimum, the part of that time that grows with duration)
+        spans: list[tuple[float, float, float | None]] = [
+            (switches[0] - phase_start, float(w.min_durations[j]), switches[0] - t)
+        ]
+        spans += [
+            (switches[i + 1] - switches[i], w.min_durations[j + 1 + i], None) for i in range(m - 1)
+        ]
+        if last:
+            spans.append((cut - switches[-1], w.min_durations[j + m], None))
+        speeds = np.linalg.norm(curve.derivative(1)(np.linspace(t, cut, 33)), axis=1)
+        stretch = max(1.0, float(np.max(speeds)) / w.max_speed)
+        for got, need, growing in spans:
+            if got >= need - 1e-9:
+                continue
+            scalable = got if growing is None else growing
+            if scalable <= 1e-9:
+                return None
+            stretch = max(stretch, (need - (got - scalable)) / scalable)
+        if stretch <= 1.0:
+            return curve, cut, switches
+        duration *= stretch * 1.02
+        if duration > w.max_stretch * nominal:
+            return None
+    return None
+
+
+def _rest_to_rest(
+    w: _Window, state: BoundaryState, points: FloatArray, minimums: Sequence[float], t: float
+) -> list[BezierCurve]:
+    """Quintic segments from ``state`` through ``points`` (k, 3), at rest at each point,
+    segment i lasting at least minimums[i] s and long enough that its acceleration peak
+    stays under ``max_acceleration``; the first segment starts with the state's velocity
+    and acceleration."""
+    segments = []
+    for i, b in enumerate(points):
+        a = state.position
+        length = float(np.linalg.norm(b - a))
+        duration = max(
+            float(minimums[i]), math.sqrt(SMOOTHSTEP_PEAK_ACC * length / w.max_acceleration), 1e-3
+        )
+        head, tail = _boundary_points(state, BoundaryState(b), 5, duration)
+        segments.append(BezierCurve(np.vstack([head, tail]), t, t + duration))
+        t += duration
+        state = BoundaryState(b)
+    return segments
 
 
 def _sliding_window(
-    phases: Sequence[ContactPhase],
-    eqs: Sequence[Halfspaces],
-    kins: Sequence[Halfspaces],
-    start: FloatArray,
-    tpts: FloatArray,
-    final: FloatArray,
-    seconds_per_metre: float,
-    min_window: float,
-) -> tuple[PiecewiseBezier, FloatArray]:
-    n_phases = len(phases)
+    w: _Window, start: FloatArray, tpts: FloatArray, final: FloatArray
+) -> tuple[PiecewiseBezier, FloatArray, tuple[str, ...]]:
+    """2PAC's sliding window (section 6.4.1): windows of up to two attractors, each from the
+    state the previous one was cut at, joined with continuous velocity and acceleration."""
+    n_phases = len(w.eqs)
     # rest points of the intermediate phases: midpoints of consecutive transition points
     rest = [start]
     for j in range(1, n_phases - 1):
@@ -420,27 +585,31 @@ def _sliding_window(
     j = 0
     segments: list[BezierCurve] = []
     switches: list[float] = []
+    methods: list[str] = []
     while j < n_phases - 1:
         m = 2 if j + 2 <= n_phases - 1 else 1
         att = tpts[j : j + m]
-        goal = rest[j + m]
-        ctrl = np.vstack([state.position, att, goal])
-        length = float(np.sum(np.linalg.norm(np.diff(ctrl, axis=0), axis=1)))
-        duration = max(min_window, seconds_per_metre * length)
-        curve = attractor_curve(state, BoundaryState(goal), att, duration, t)
         last = j + m == n_phases - 1
-        cut = curve.t1
-        if not last:
-            target_set = stack([eqs[j + m], kins[j + m]])
-            taus = np.linspace(0.6, 0.95, 15)
-            inside = target_set.violation(curve(t + taus * duration)) <= 1e-9
-            if np.any(inside):
-                cut = t + float(taus[int(np.argmax(inside))]) * duration
-        lo = t
-        for a in att:
-            sw = _closest_time(curve, a, lo, cut)
-            switches.append(sw)
-            lo = sw
+        phase_start = switches[-1] if switches else 0.0
+        found = _window_curve(w, state, att, rest[j + m], j, t, phase_start, last)
+        if found is None:
+            # no stretch gives every phase its time: stop at the transition points instead
+            points = np.vstack([att, final[None, :]]) if last else att
+            spent = t - phase_start
+            minimums = [max(w.min_durations[j] - spent, 0.0), *w.min_durations[j + 1 : j + m]]
+            if last:
+                minimums.append(w.min_durations[j + m])
+            pieces = _rest_to_rest(w, state, points, minimums, t)
+            segments.extend(pieces)
+            switches.extend(piece.t1 for piece in pieces[:m])
+            methods.extend(["rest_to_rest"] * (m + 1 if last else m))
+            state = BoundaryState(att[-1]) if not last else BoundaryState(final)
+            t = pieces[-1].t1
+            j += m
+            continue
+        curve, cut, window_switches = found
+        switches.extend(window_switches)
+        methods.extend(["2pac"] * (m + 1 if last else m))
         if cut < curve.t1:
             piece, _ = curve.split(cut)
             vel = curve.derivative(1)(cut)
@@ -448,9 +617,9 @@ def _sliding_window(
             state = BoundaryState(piece.control_points[-1], vel, acc)
         else:
             piece = curve
-            state = BoundaryState(goal)
+            state = BoundaryState(rest[j + m])
         segments.append(piece)
         t = piece.t1
         j += m
     phase_times = np.array([0.0, *switches, t])
-    return PiecewiseBezier(tuple(segments)), phase_times
+    return PiecewiseBezier(tuple(segments)), phase_times, tuple(methods)

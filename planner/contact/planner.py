@@ -21,7 +21,7 @@ from planner.contact.slope import LEVEL_PITCH, follow_slope, straight_slope_path
 from planner.contact.standing import standing_state, state_from_root_pose
 from planner.contact.state import ContactState
 from planner.kinematics import frame_placement
-from planner.motion.sequence import SequenceMotion, sequence_motion
+from planner.motion.sequence import SequenceMotion, Timing, sequence_motion
 from planner.offline import OfflineData
 from planner.result import PlanResult, PlanStatus
 from planner.scene import Scene
@@ -50,7 +50,8 @@ class PlanOptions:
     sequence : contact-sequence tuning. contact : contact-generation tuning. limbs : limbs
     the walk may use besides those in contact at the start or goal (a hand on a handrail).
     max_pitch : rad, how far the trunk may pitch (None: the character's ``max_pitch``); above
-    ``LEVEL_PITCH`` the root path is laid along the terrain's slope (a hexapod climbing)."""
+    ``LEVEL_PITCH`` the root path is laid along the terrain's slope (a hexapod climbing).
+    timing : pace, transition-point cost and user attractors of the COM (2PAC)."""
 
     rate: float = 30.0
     step: float = 0.05
@@ -58,6 +59,7 @@ class PlanOptions:
     contact: ContactParams = field(default_factory=ContactParams)
     limbs: tuple[str, ...] = ()
     max_pitch: float | None = None
+    timing: Timing = field(default_factory=Timing)
 
     def __post_init__(self) -> None:
         if self.max_pitch is not None and not 0.0 <= self.max_pitch <= MAX_PITCH:
@@ -250,7 +252,13 @@ def plan_contact_motion(
     sequence, poses, path = best
     states = sequence.value or (start_state.value,)
     motion = sequence_motion(
-        character, data, scene.collision.bvh, states, rate=opts.rate, until=whole
+        character,
+        data,
+        scene.collision.bvh,
+        states,
+        rate=opts.rate,
+        timing=opts.timing,
+        until=whole,
     )
     lap("motion")
     status = sequence.status

@@ -11,7 +11,7 @@ it with the whole body (2PAC section 7.2).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -32,6 +32,32 @@ if TYPE_CHECKING:  # annotations only: planner.contact imports planner.motion
 
 FloatArray = NDArray[np.float64]
 _QUINTIC_PEAK = 10.0 / np.sqrt(3.0)  # peak |c''| T^2 / L of the rest-to-rest quintic
+
+
+MIN_SPEED = 0.25
+MAX_SPEED = 3.0
+
+
+@dataclass(frozen=True, slots=True)
+class Timing:
+    """How a plan's COM is timed and shaped (2PAC sections 6.4, 7.3).
+
+    speed : factor on the nominal pace and on the shortest swing and shift durations, in
+    [MIN_SPEED, MAX_SPEED]. cost : the transition-point cost ("tired" by default).
+    attractors : user-placed transition points, (phase change index, world point (3,) m);
+    each is honoured when it is in static equilibrium and reachable for both phases it
+    joins, refused otherwise (the report says which and why).
+    """
+
+    speed: float = 1.0
+    cost: trajectory.TransitionCost = field(
+        default_factory=lambda: trajectory.TransitionCost("tired")
+    )
+    attractors: tuple[tuple[int, FloatArray], ...] = ()
+
+    def __post_init__(self) -> None:
+        if not MIN_SPEED <= self.speed <= MAX_SPEED:
+            raise ValueError(f"speed must be in [{MIN_SPEED}, {MAX_SPEED}], got {self.speed}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -114,6 +140,65 @@ def _last_placement(
     return frame_placement(character.model, q, character.limb(limb).effector_frame)
 
 
+def _user_transitions(
+    phases: Sequence[trajectory.ContactPhase],
+    kinematics: Sequence[trajectory.Halfspaces | None],
+    attractors: Sequence[tuple[int, FloatArray]],
+) -> tuple[list[FloatArray | None] | None, list[dict[str, object]]]:
+    """The user's transition points that hold (one entry per phase change, None where the
+    planner chooses) and, per attractor, whether it was honoured and why not."""
+    if not attractors:
+        return None, []
+    count = len(phases) - 1
+    placed: list[FloatArray | None] = [None] * count
+    report: list[dict[str, object]] = []
+    for index, point in attractors:
+        entry: dict[str, object] = {"transition": int(index), "honoured": False}
+        report.append(entry)
+        if not 0 <= index < count:
+            entry["reason"] = f"the plan has {count} phase changes (0 to {count - 1})"
+            continue
+        if placed[index] is not None:
+            entry["reason"] = "another attractor already placed this transition"
+            continue
+        kins = [k for k in (kinematics[index], kinematics[index + 1]) if k is not None]
+        check = trajectory.check_transition_point(
+            np.asarray(point, dtype=np.float64),
+            [trajectory.equilibrium_halfspaces(phases[i]) for i in (index, index + 1)],
+            kins,
+        )
+        if not check.feasible:
+            entry["reason"] = (
+                f"not in static equilibrium for both phases (off by {check.slack:.3f} m)"
+                if check.slack > 0
+                else f"out of the limbs' reach (off by {check.kinematic_slack:.3f} m)"
+            )
+            continue
+        placed[index] = np.asarray(point, dtype=np.float64)
+        entry["honoured"] = True
+    return placed, report
+
+
+def swing_durations(
+    character: Character, states: Sequence[ContactState], speed: float = 1.0
+) -> list[float]:
+    """Per state, the shortest its phase may last (s): a phase whose limb swings to the next
+    state's contact gets ``MIN_SWING_S`` or the swing distance at ``SWING_SPEED``, whichever
+    is longer, other phases ``MIN_SHIFT_S``; all divided by ``speed``."""
+    out = []
+    for k, state in enumerate(states):
+        limb = _swinging_limb(states, k)
+        if limb is None:
+            out.append(tuning.MIN_SHIFT_S / speed)
+            continue
+        target = states[k + 1].contact(limb)
+        assert target is not None
+        start = _last_placement(character, states, k, limb, state.q)
+        reach = float(np.linalg.norm(np.asarray(target.placement)[:3, 3] - start[:3, 3]))
+        out.append(max(tuning.MIN_SWING_S, reach / tuning.SWING_SPEED) / speed)
+    return out
+
+
 def sequence_motion(
     character: Character,
     data: OfflineData,
@@ -123,53 +208,50 @@ def sequence_motion(
     rate: float = 30.0,
     lift: float = tuning.SWING_LIFTS[0],
     obstacles: Sequence[tuple[Any, Any]] = (),
-    seconds_per_metre: float = 4.0,
-    min_swing_s: float = 0.6,
-    min_phase_s: float = 0.2,
-    max_acceleration: float = 0.6,
+    timing: Timing | None = None,
     until: Termination = never,
 ) -> SequenceMotion:
     """COM trajectory and keyframes through ``states`` (at least one) in the scene
     ``scene_bvh`` (coal BVH), keyframes at ``rate`` Hz.
 
-    If ``until`` fires while keyframes are computed, the remaining phases keep their COM curve
-    but get no keyframes; the report says how many phases were animated.
+    The COM follows 2PAC's sliding window at ``timing.speed`` times the nominal pace
+    (``tuning.SECONDS_PER_METRE``), every phase lasting at least what its swing needs
+    (:func:`swing_durations`); a window that cannot give its phases that time stops at its
+    transition points instead (reported per phase). Transition points use ``timing.cost``
+    (default "tired": between the previous point and the COM of the state after next, so
+    the COM travels over the stance while a limb swings) unless the user placed them.
+    If ``until`` fires while keyframes are computed, the remaining phases keep their COM
+    curve but get no keyframes; the report says how many phases were animated.
     """
     if not states:
         raise ValueError("states: at least one contact state is needed")
+    timing = timing or Timing()
+    speed = timing.speed
     model = character.model
     phases_tr = [contact_phase(character, s) for s in states]
     kinematics = [phase_kinematics(data, s) for s in states]
-    start_com = com_position(model, states[0].q)
-    end_com = com_position(model, states[-1].q)
+    coms = [com_position(model, s.q) for s in states]
+    start_com, end_com = coms[0], coms[-1]
+    placed, attractor_report = _user_transitions(phases_tr, kinematics, timing.attractors)
     com_trajectory = trajectory.plan_com_trajectory(
         phases_tr,
         start_com,
         end_com,
         kinematics=kinematics,
-        seconds_per_metre=seconds_per_metre,
+        cost=timing.cost,
+        user_transitions=placed,
+        targets=[coms[min(j + 2, len(states) - 1)] for j in range(len(states) - 1)],
+        min_durations=swing_durations(character, states, speed),
+        seconds_per_metre=tuning.SECONDS_PER_METRE / speed,
+        min_window=tuning.MIN_SHIFT_S / speed,
+        max_stretch=tuning.MAX_WINDOW_STRETCH,
+        max_speed=tuning.MAX_COM_SPEED * speed,
+        max_acceleration=tuning.FALLBACK_MAX_ACCELERATION,
+        n_checks=0,
     )
     times = np.asarray(com_trajectory.phase_times, dtype=np.float64)
     curve: trajectory.PiecewiseBezier = com_trajectory.curve
-    method = "2pac"
-    swing_phases = [k for k in range(len(states)) if _swinging_limb(states, k) is not None]
-    if any(times[k + 1] - times[k] < min_swing_s for k in swing_phases):
-        # A swing needs time; 2PAC may pass the phase in an instant when consecutive
-        # transition points coincide. Rest at each transition point instead: every segment
-        # joins two points of its phase's convex feasible set, so it stays inside it.
-        # The waypoints are the planned states' own COMs: each is balanced on its state's
-        # contacts, and the whole-body states (which the keyframes head for) agree with
-        # them, where 2PAC's transition points sit anywhere in the learned kinematic sets
-        # (on stairs 30 cm lower than any posture the legs can hold upright).
-        waypoints = [com_position(model, s.q) for s in states] + [end_com]
-        curve, times = rest_to_rest(
-            np.asarray(waypoints, dtype=np.float64),
-            min_durations=[
-                min_swing_s if k in swing_phases else min_phase_s for k in range(len(states))
-            ],
-            max_acceleration=max_acceleration,
-        )
-        method = "rest_to_rest"
+    methods = com_trajectory.phase_methods
     reports = trajectory.validate_dynamics(curve, phases_tr, times)
 
     spec_phases = []
@@ -190,9 +272,13 @@ def sequence_motion(
     built = build_motion(character, scene_bvh, spec, obstacles=obstacles, until=until)
     report: dict[str, object] = {
         **built.report.as_dict(),
-        "com_method": method,
+        "com_method": "2pac" if all(m == "2pac" for m in methods) else "2pac+rest_to_rest",
         "quasi_static_feasible": bool(com_trajectory.quasi_static_feasible),
         "transition_slack": [float(t.slack) for t in com_trajectory.transitions],
+        "phase_methods": list(methods),
+        "speed": speed,
+        "transition_cost": timing.cost.kind,
+        "attractors": attractor_report,
         "dynamic_validity": [
             {
                 "fraction_valid": float(r.fraction_valid),

@@ -141,3 +141,33 @@ creation)."""
 STEP_MAX_ACCELERATION = 0.2
 """m/s^2, peak COM acceleration of a one-step motion's rest-to-rest shift: low enough that
 the shift over one foot passes Eq. 1 everywhere (0.4 fails it on the Twister games)."""
+
+
+# --- timing of a plan (2PAC's sliding window, planner.motion.sequence) -----------------------
+SECONDS_PER_METRE = 1.0
+"""s per metre of a window's control polygon: the nominal pace of 2PAC's sliding window
+(section 6.4.1); ``options.speed`` divides it."""
+
+MIN_SWING_S = 0.6
+"""s, shortest swing of a plan: a foot or hand leaves, travels and lands."""
+
+SWING_SPEED = 0.8
+"""m/s, mean effector speed from lift-off to touch-down: a long reach gets more than
+MIN_SWING_S."""
+
+MIN_SHIFT_S = 0.15
+"""s, shortest phase of a plan without a swing (the weight shifts between supports)."""
+
+MAX_WINDOW_STRETCH = 40.0
+"""A window of the sliding window is slowed down at most this much to give its phases
+their minimum durations (short windows of a slow gait need much: a 0.3 s nominal window
+whose swing takes a fifth of it); beyond, which happens when consecutive transition points
+(nearly) coincide, that window stops at its transition points (reported per phase as
+``rest_to_rest``)."""
+
+MAX_COM_SPEED = 0.5
+"""m/s, the COM of a plan never moves faster at speed 1 (``options.speed`` scales it): the
+whole-body tracker follows it without the root jumping between keyframes."""
+
+FALLBACK_MAX_ACCELERATION = 0.6
+"""m/s^2, peak COM acceleration of the rest-to-rest segments of a window that fell back."""

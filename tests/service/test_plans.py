@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+import typing
 from typing import Any
 
 import httpx
@@ -10,7 +11,9 @@ import numpy as np
 import pytest
 
 from planner.character import MAX_PITCH
+from planner.motion.sequence import MAX_SPEED, MIN_SPEED
 from service import schemas
+from trajectory.transition import COST_KINDS
 
 pytestmark = pytest.mark.anyio
 
@@ -101,6 +104,13 @@ async def test_seed_is_drawn_and_echoed(client: httpx.AsyncClient) -> None:
         ({"options": {"max_pitch": -0.1}}, "options.max_pitch"),
         ({"seed": -1}, "seed"),
         ({"unexpected": 1}, "unexpected"),
+        ({"options": {"speed": 0.1}}, "options.speed"),
+        ({"options": {"speed": 4}}, "options.speed"),
+        ({"options": {"transition_cost": "silly"}}, "options.transition_cost"),
+        ({"options": {"cost_strength": 3}}, "options.cost_strength"),
+        ({"options": {"attractors": [{"transition": -1, "point": [0, 0, 1]}]}}, "options.attr"),
+        ({"options": {"attractors": [{"transition": 0, "point": [0, 1]}]}}, "options.attr"),
+        ({"options": {"attractors": [{"transition": 0, "point": [0, 0, 1]}] * 65}}, "options.attr"),
     ],
 )
 async def test_bad_requests_name_the_field(
@@ -133,6 +143,59 @@ async def test_unreachable_goal_stops_within_budget(client: httpx.AsyncClient) -
     assert elapsed < 1.0 + 60.0
 
 
-def test_service_pitch_bound_is_the_planner_bound() -> None:
-    """The schema repeats the planner's bound (clients import the schemas, never planner)."""
+def test_service_bounds_are_the_planner_bounds() -> None:
+    """The schema repeats the planner's bounds (clients import the schemas, never planner)."""
     assert schemas.MAX_PITCH == MAX_PITCH
+    assert (schemas.MIN_SPEED, schemas.MAX_SPEED) == (MIN_SPEED, MAX_SPEED)
+    assert set(typing.get_args(schemas.TransitionCostKind)) == set(COST_KINDS)
+
+
+async def test_speed_cost_and_attractors_shape_the_com(client: httpx.AsyncClient) -> None:
+    """The paper's user controls over HTTP: a faster plan is shorter; "low" lowers the
+    transition points; an attractor in balance is honoured where asked, one in the air is
+    refused with its reason, one past the plan's changes too."""
+    short = {**WALK, "goal": {"stand_at": [0.6, 0.0, 0.0]}}
+    plain = (await client.post("/v1/plans", json=short, timeout=120)).json()
+    assert plain["report"]["com_method"].startswith("2pac")
+    assert len(plain["report"]["phase_methods"]) == len(plain["phases"])
+    fast = {**short, "options": {"speed": 2.0}}
+    quick = (await client.post("/v1/plans", json=fast, timeout=120)).json()
+    assert quick["states"] == plain["states"]  # the same contacts, sooner
+    assert quick["keyframes"][-1]["t"] < 0.8 * plain["keyframes"][-1]["t"]
+
+    def change_times(body: dict[str, Any]) -> np.ndarray:
+        return np.array([p["t1"] for p in body["phases"][:-1]])
+
+    low = {**short, "options": {"transition_cost": "low", "cost_strength": 1.0}}
+    lowered = (await client.post("/v1/plans", json=low, timeout=120)).json()
+    assert lowered["report"]["transition_cost"] == "low"
+    assert lowered["states"] == plain["states"]
+
+    def com_at_changes(body: dict[str, Any]) -> np.ndarray:
+        out = []
+        for t in change_times(body):
+            segment = next(s for s in body["com"] if s["t0"] <= t <= s["t1"])
+            points = np.asarray(segment["control_points"])
+            u = (t - segment["t0"]) / max(segment["t1"] - segment["t0"], 1e-12)
+            while len(points) > 1:
+                points = (1 - u) * points[:-1] + u * points[1:]
+            out.append(points[0])
+        return np.array(out)
+
+    assert com_at_changes(lowered)[:, 2].mean() < com_at_changes(plain)[:, 2].mean() - 0.01
+    first = com_at_changes(plain)[0]
+    asked = {
+        **short,
+        "options": {
+            "attractors": [
+                {"transition": 0, "point": (first - [0.0, 0.0, 0.01]).tolist()},
+                {"transition": 1, "point": [0.0, 0.0, 5.0]},
+                {"transition": 999, "point": first.tolist()},
+            ]
+        },
+    }
+    placed = (await client.post("/v1/plans", json=asked, timeout=120)).json()
+    verdicts = placed["report"]["attractors"]
+    assert [v["honoured"] for v in verdicts] == [True, False, False]
+    assert "equilibrium" in verdicts[1]["reason"] or "reach" in verdicts[1]["reason"]
+    assert "phase changes" in verdicts[2]["reason"]

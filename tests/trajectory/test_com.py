@@ -78,6 +78,89 @@ def test_sliding_window_has_continuous_velocity() -> None:
     assert any(np.linalg.norm(a.derivative()(a.t1)) > 1e-3 for a in segs[:-1])
 
 
+@settings(max_examples=8, deadline=None)
+@given(
+    swing=st.floats(0.2, 1.5),
+    shift=st.floats(0.05, 0.5),
+    n_phases=st.integers(3, 11),
+    cost=st.sampled_from(["distance", "tired"]),
+)
+def test_every_phase_gets_its_minimum_duration(
+    swing: float, shift: float, n_phases: int, cost: str
+) -> None:
+    """The sliding window is slowed down (or a window falls back, and says so) until every
+    phase lasts its minimum; the joins stay continuous in velocity and acceleration."""
+    phases = walking_phases(n_phases)
+    start = np.array([0.0, 0.0, 0.9])
+    centres = [np.vstack([c.points for c in p.contacts]).mean(axis=0) for p in phases]
+    targets = [centres[min(j + 2, n_phases - 1)] + [0.0, 0.0, 0.9] for j in range(n_phases - 1)]
+    minimums = [swing if j % 2 else shift for j in range(n_phases)]
+    traj = trajectory.plan_com_trajectory(
+        phases,
+        start,
+        n_checks=0,
+        cost=TransitionCost(cost),  # type: ignore[arg-type]
+        targets=targets,
+        min_durations=minimums,
+        max_stretch=40.0,
+    )
+    durations = np.diff(traj.phase_times)
+    assert np.all(durations >= np.asarray(minimums) - 0.05), (durations, minimums)
+    assert len(traj.phase_methods) == n_phases
+    assert set(traj.phase_methods) <= {"2pac", "rest_to_rest"}
+    for a, b in itertools.pairwise(traj.segments):
+        np.testing.assert_allclose(a(a.t1), b(b.t0), atol=1e-9)
+        np.testing.assert_allclose(a.derivative()(a.t1), b.derivative()(b.t0), atol=1e-7)
+        np.testing.assert_allclose(a.derivative(2)(a.t1), b.derivative(2)(b.t0), atol=1e-5)
+
+
+def test_tired_transition_points_spread_over_the_stance_and_stay_2pac() -> None:
+    """With "tired" aimed at the phase after next, the two transition points around a
+    single-support phase differ (the COM travels while the foot swings), so no window
+    needs to fall back; with "distance" they coincide."""
+    phases = walking_phases(7)
+    start = np.array([0.0, 0.0, 0.9])
+    centres = [np.vstack([c.points for c in p.contacts]).mean(axis=0) for p in phases]
+    targets = [centres[min(j + 2, 6)] + [0.0, 0.0, 0.9] for j in range(6)]
+    tired = trajectory.plan_com_trajectory(
+        phases, start, n_checks=0, cost=TransitionCost("tired"), targets=targets
+    )
+    plain = trajectory.plan_com_trajectory(phases, start, n_checks=0)
+    gaps = [
+        np.linalg.norm(tired.transitions[j].point - tired.transitions[j - 1].point)
+        for j in (1, 3, 5)
+    ]
+    assert min(gaps) > 0.02
+    same = [
+        np.linalg.norm(plain.transitions[j].point - plain.transitions[j - 1].point)
+        for j in (1, 3, 5)
+    ]
+    assert max(same) < 1e-3
+    timed = trajectory.plan_com_trajectory(
+        phases,
+        start,
+        np.array([0.45, 0.0, 0.9]),  # an end beyond the last transition point
+        n_checks=0,
+        cost=TransitionCost("tired"),
+        targets=targets,
+        min_durations=[0.15, 0.5] * 3 + [0.15],
+        max_stretch=40.0,
+    )
+    assert timed.phase_methods == ("2pac",) * 7
+
+
+def test_timing_arguments_are_checked() -> None:
+    phases = walking_phases(3)
+    with pytest.raises(ValueError, match="min_durations"):
+        trajectory.plan_com_trajectory(phases, np.zeros(3), min_durations=[0.1])
+    with pytest.raises(ValueError, match="min_durations"):
+        trajectory.plan_com_trajectory(phases, np.zeros(3), min_durations=[0.1, -1.0, 0.1])
+    with pytest.raises(ValueError, match="targets"):
+        trajectory.plan_com_trajectory(phases, np.zeros(3), targets=[None])
+    with pytest.raises(ValueError, match="max_stretch"):
+        trajectory.plan_com_trajectory(phases, np.zeros(3), max_stretch=0.5)
+
+
 @settings(max_examples=10, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1))
 def test_quasi_static_polyline_satisfies_eq1(seed: int) -> None:
