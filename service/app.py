@@ -10,6 +10,7 @@ from fastapi import FastAPI
 
 from service import __version__
 from service.errors import install_error_handlers
+from service.files import remove_leftovers
 from service.results import ResultStore, code_version
 from service.routes import characters, health, jumps, plans, results, scenes, twister, viewer
 from service.settings import Settings, get_settings
@@ -24,6 +25,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        for directory in (settings.scenes_path, settings.results_path, settings.roadmaps_path):
+            remove_leftovers(directory, older_than_s=settings.leftover_min_age_s)
         registry = registry_for(settings)
         registry.preload()
         app.state.registry = registry

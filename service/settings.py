@@ -47,6 +47,14 @@ class Settings(BaseSettings):
         description="bytes of stored results kept (least recently used go)",
     )
 
+    leftover_min_age_s: float = Field(
+        default=60.0,
+        ge=0,
+        le=86_400,
+        description="s; temporary files of interrupted writes older than this are removed at "
+        "start-up (younger ones may be another service worker's write in progress)",
+    )
+
     @property
     def cache_path(self) -> Path:
         """Offline data and collision caches."""
