@@ -106,11 +106,19 @@ class SceneDetail(BaseModel):
 
 MAX_TIME_BUDGET_S = 60.0
 MAX_COORDINATE = 10_000.0
-MAX_SEED = 2**63 - 1
+MAX_SEED = 2**53 - 1  # the largest integer a JSON number carries exactly in JavaScript
 
 Coordinate = Annotated[float, Field(ge=-MAX_COORDINATE, le=MAX_COORDINATE)]
 Point3 = tuple[Coordinate, Coordinate, Coordinate]
-Seed = Annotated[int, Field(ge=0, le=MAX_SEED, description="replays the answer bit for bit")]
+Seed = Annotated[
+    int,
+    Field(
+        ge=0,
+        le=MAX_SEED,
+        description="replays the answer bit for bit; at most 2^53 - 1, so that JavaScript and "
+        "other JSON readers keeping numbers as doubles replay it exactly",
+    ),
+]
 TimeBudget = Annotated[
     float, Field(gt=0, le=MAX_TIME_BUDGET_S, description="seconds of planning, at most 60")
 ]

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import secrets
 from concurrent.futures import Future
 from typing import Any
 
@@ -20,6 +19,7 @@ from service.routes.results import (
     FormatQuery,
     OverlaysQuery,
     SceneQuery,
+    draw_seed,
     remember,
     stored_answer,
 )
@@ -103,7 +103,7 @@ async def get_roadmap(roadmap_id: str, request: Request, settings: SettingsDep) 
 @router.post("/jumps", responses={**_ERRORS, 504: {"model": ErrorBody}})
 async def create_jumps(body: JumpRequest, request: Request) -> JumpResponse:
     """Plan a sequence of ballistic jumps (on a given roadmap, or one built within budget)."""
-    seed = body.seed if body.seed is not None else secrets.randbits(63)
+    seed = body.seed if body.seed is not None else draw_seed()
     answer = await request.app.state.pool.run(
         compute.run_jumps, body.model_dump_json(), seed, timeout_s=body.time_budget_s + GRACE_S
     )

@@ -3,6 +3,7 @@ GLB (the routes of each kind call :func:`stored_answer`)."""
 
 from __future__ import annotations
 
+import secrets
 from typing import Annotated, Any, Literal, TypeVar
 
 from anyio import to_thread
@@ -14,7 +15,7 @@ from service.deps import RegistryDep
 from service.errors import ApiError, not_found
 from service.export import result_glb
 from service.results import Kind, ResultStore, StoredResult, result_id
-from service.schemas import ErrorBody, ResultSummary
+from service.schemas import MAX_SEED, ErrorBody, ResultSummary
 
 Answer = TypeVar("Answer", bound=BaseModel)
 router = APIRouter(prefix="/v1", tags=["results"])
@@ -38,6 +39,11 @@ OverlaysQuery = Annotated[
     bool,
     Query(description="GLB: include the COM curve or jump arcs ('com') and contact points"),
 ]
+
+
+def draw_seed() -> int:
+    """A seed for a request without one, in [0, 2^53 - 1] (exact as a JavaScript number)."""
+    return secrets.randbelow(MAX_SEED + 1)
 
 
 def store_of(request: Request) -> ResultStore:
