@@ -11,6 +11,7 @@ from fastapi import APIRouter, Query, Request
 from fastapi.responses import Response
 from pydantic import BaseModel, ValidationError
 
+from service.context import annotate
 from service.deps import RegistryDep
 from service.errors import ApiError, not_found
 from service.export import result_glb
@@ -69,6 +70,9 @@ async def remember(
     }
     stored = StoredResult(kind, rid, {**request_json, "seed": seed}, answer)
     await to_thread.run_sync(store_of(request).put, stored, summary)
+    status = str(answer.get("status"))
+    request.app.state.metrics.observe_answer(kind, status)
+    annotate(kind=kind, result=rid, seed=seed, answer_status=status, timings=answer.get("timings"))
     return answer
 
 
