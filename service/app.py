@@ -10,7 +10,7 @@ from fastapi import FastAPI
 from starlette.middleware.cors import CORSMiddleware
 from starlette.middleware.gzip import GZipMiddleware
 
-from service import __version__
+from service import __version__, openapi
 from service.errors import install_error_handlers
 from service.files import remove_leftovers
 from service.metrics import Metrics
@@ -66,6 +66,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         version=__version__,
         description="Multi-contact motion planning for legged characters.",
         lifespan=lifespan,
+        docs_url=None,  # served by service.openapi from local assets, not a CDN
+        redoc_url=None,
     )
     app.state.settings = settings
     app.state.metrics = app_metrics
@@ -81,6 +83,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(jumps.router)
     app.include_router(results.router)
     viewer.install(app)
+    openapi.install(app)
     # Outermost last: telemetry sees the final status and times everything, CORS headers go
     # on every answer (errors too), gzip compresses what the routes answer.
     app.add_middleware(

@@ -23,6 +23,7 @@ router = APIRouter(prefix="/v1", tags=["plans"])
 _ERRORS: dict[int | str, dict[str, Any]] = {
     404: {"model": ErrorBody, "description": "unknown character or scene"},
     422: {"model": ErrorBody, "description": "invalid request"},
+    503: {"model": ErrorBody, "description": "a planning process died; retry"},
     504: {"model": ErrorBody, "description": "the worker did not answer in time"},
 }
 GRACE_S = 15.0  # beyond the plan's own budget: keyframes, start-up of a fresh worker
