@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import gzip
 import json
+import os
+import signal
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from typing import Any
@@ -11,6 +13,7 @@ from typing import Any
 import httpx
 import pytest
 from asgi_lifespan import LifespanManager
+from prometheus_client.parser import text_string_to_metric_families
 
 from service.app import create_app
 from service.settings import Settings
@@ -174,3 +177,31 @@ async def test_large_answers_are_gzipped_small_ones_not(client: httpx.AsyncClien
 def test_gzip_threshold_is_a_setting() -> None:
     with pytest.raises(ValueError, match="gzip_minimum_bytes"):
         Settings(gzip_minimum_bytes=-1)
+
+
+async def test_a_dead_planning_process_is_counted_as_a_pool_restart(settings: Settings) -> None:
+    def restarts(text: str) -> float:
+        for family in text_string_to_metric_families(text):
+            for sample in family.samples:
+                if sample.name == "gecko_worker_pool_restarts_total":
+                    return sample.value
+        raise AssertionError("gecko_worker_pool_restarts_total is missing")
+
+    app = create_app(settings.model_copy(update={"worker_processes": 1}))
+    async with (
+        LifespanManager(app),
+        httpx.AsyncClient(transport=httpx.ASGITransport(app=app), base_url="http://g") as http,
+    ):
+        assert (await http.post("/v1/twister/step", json=STEP)).status_code == 200
+        assert restarts((await http.get("/metrics")).text) == 0
+        processes = app.state.pool._executor._processes
+        for pid in list(processes):
+            os.kill(pid, signal.SIGKILL)
+        for process in list(processes.values()):
+            process.join(timeout=10)
+        lost = await http.post("/v1/twister/step", json=STEP)
+        assert lost.status_code == 503, lost.text
+        assert lost.json()["error"]["code"] == "worker_lost"
+        assert restarts((await http.get("/metrics")).text) == 1
+        again = await http.post("/v1/twister/step", json=STEP)
+        assert again.status_code == 200, again.text
