@@ -24,7 +24,7 @@ data: setup ## build the built-in characters' offline data (cached; instant when
 	@$(VENV)/bin/gecko-build-data --all --cache-dir "$(GECKO_HOME)/cache"
 
 serve: data ## run the service on HOST:PORT (127.0.0.1:8000) with built-in scenes and characters
-	@$(VENV)/bin/uvicorn service.app:create_app --factory --host $(HOST) --port $(PORT) --workers $(WORKERS)
+	@$(VENV)/bin/uvicorn service.app:create_app --factory --host $(HOST) --port $(PORT) --workers $(WORKERS) --no-access-log
 
 test: data ## run the whole test suite
 	@$(PY) -m pytest

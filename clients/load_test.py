@@ -1,12 +1,19 @@
-"""Load-test client: bounded concurrent requests against a Gecko server, with latency figures.
+"""Load-test client: what users do (Twister games, short plans, jumps, listings) at a ramp of
+concurrency levels, with throughput, latency percentiles and errors per kind of request.
 
 Usage::
 
-    python -m clients.load_test --url http://127.0.0.1:8000 --concurrency 8 --requests 200
+    python -m clients.load_test --url http://127.0.0.1:8000 --concurrency 1,4,16 --duration 20
 
-Every run is bounded in request count and in time (``--duration``), and stops by itself.
-Requests cycle through a mix of read endpoints; the summary gives, per endpoint, the count,
-errors and the median, p95 and maximum latency in milliseconds.
+Each concurrency level runs for ``--duration`` seconds (or ``--requests`` requests, whichever
+comes first) with that many simulated users. A user draws the kind of each request from
+``--mix``: ``step`` plays a Twister game (each step passes the previous answer's state back,
+a new game after ``--game-length`` steps or a refused move), ``plan`` asks a short walk,
+``jump`` plans jumps over the ``gaps`` scene on a roadmap built once before the ramp,
+``list`` reads a listing (health, characters, scenes, stored results). The summary gives,
+per level and kind, the count, throughput (answers per second), p50 and p99 latency (ms, of
+the answers with status < 400) and the errors by HTTP status or by failure (``timeout``,
+``connection``), with one message of each. Every failure says what happened.
 """
 
 from __future__ import annotations
@@ -14,116 +21,364 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
-import statistics
+import math
+import random
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Awaitable, Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import httpx
 
-MAX_REQUESTS = 100_000
+MAX_REQUESTS = 1_000_000
 MAX_CONCURRENCY = 256
 MAX_DURATION_S = 3600.0
+KINDS = ("step", "plan", "jump", "list")
+DEFAULT_MIX = "step=6,list=2,plan=1,jump=1"
+LIST_PATHS = ("/health", "/v1/characters", "/v1/scenes", "/v1/results?limit=20")
+ROADMAP_POLL_S = 0.5
+
+# The workloads: small and quick answers of each kind on the built-in characters and scenes.
+STEP_START = {
+    "character": "quadruped",
+    "scene": "twister",
+    "stand_at": [0.0, 0.0, 0.0],
+    "action": {"kind": "break", "limb": "lf_foot"},
+}
+PLAN = {
+    "character": "humanoid",
+    "scene": "flat",
+    "start": {"stand_at": [0.0, 0.0, 0.0]},
+    "goal": {"stand_at": [0.4, 0.0, 0.0]},
+}
+ROADMAP = {"character": "quadruped", "scene": "gaps"}
+JUMP = {
+    "character": "quadruped",
+    "scene": "gaps",
+    "start": {"stand_at": [0.75, 0.0, 0.6]},
+    "goal": {"stand_at": [8.25, 0.0, 1.0]},
+}
+
+
+class LoadTestError(Exception):
+    """The load test could not run (bad arguments, a server that does not answer the set-up)."""
+
+
+def describe(exc: BaseException, timeout_s: float | None = None) -> str:
+    """A message that is never empty: what failed, and how."""
+    if isinstance(exc, httpx.TimeoutException):
+        limit = f" after {timeout_s:g} s" if timeout_s is not None else ""
+        return f"timed out{limit} ({type(exc).__name__})"
+    text = str(exc).strip()
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+def _error_message(response: httpx.Response) -> str:
+    try:
+        error = response.json()["error"]
+        field_name = f" (field {error['field']})" if error.get("field") else ""
+        return f"{error['code']}: {error['message']}{field_name}"
+    except (ValueError, KeyError, TypeError):
+        return response.text[:200] or response.reason_phrase or f"HTTP {response.status_code}"
 
 
 @dataclass(slots=True)
-class EndpointStats:
-    """Latencies (seconds) and error count of one endpoint."""
+class KindStats:
+    """Latencies (s) of the answers with status < 400, and the failures by status or kind."""
 
     latencies: list[float] = field(default_factory=list)
-    errors: int = 0
+    errors: dict[str, int] = field(default_factory=dict)
+    examples: dict[str, str] = field(default_factory=dict)
 
-    def summary(self) -> dict[str, float | int]:
+    def fail(self, key: str, message: str) -> None:
+        self.errors[key] = self.errors.get(key, 0) + 1
+        self.examples.setdefault(key, message)
+
+    def summary(self, seconds: float) -> dict[str, Any]:
+        """Count, throughput (answers/s over ``seconds``), p50/p99 (ms) and errors."""
         ordered = sorted(self.latencies)
-        if not ordered:
-            return {"count": 0, "errors": self.errors}
-        p95 = ordered[min(len(ordered) - 1, round(0.95 * (len(ordered) - 1)))]
+        out: dict[str, Any] = {
+            "count": len(ordered) + sum(self.errors.values()),
+            "ok": len(ordered),
+            "per_second": round(len(ordered) / seconds, 3) if seconds > 0 else 0.0,
+            "errors": dict(sorted(self.errors.items())),
+            "error_examples": dict(sorted(self.examples.items())),
+        }
+        if ordered:
+            out["p50_ms"] = round(percentile(ordered, 0.50) * 1e3, 1)
+            out["p99_ms"] = round(percentile(ordered, 0.99) * 1e3, 1)
+        return out
+
+
+def percentile(ordered: Sequence[float], fraction: float) -> float:
+    """Nearest-rank percentile of sorted values (``fraction`` in [0, 1])."""
+    rank = max(1, min(len(ordered), math.ceil(fraction * len(ordered))))
+    return ordered[rank - 1]
+
+
+def parse_mix(text: str) -> dict[str, float]:
+    """``"step=6,list=2"`` -> weights by kind; unknown kinds and bad weights are refused."""
+    mix: dict[str, float] = {}
+    for part in text.split(","):
+        name, _, weight = part.strip().partition("=")
+        if name not in KINDS:
+            raise LoadTestError(f"unknown kind '{name}' in --mix; expected some of {KINDS}")
+        try:
+            mix[name] = float(weight) if weight else 1.0
+        except ValueError:
+            message = f"weight of '{name}' in --mix is not a number: '{weight}'"
+            raise LoadTestError(message) from None
+        if not 0 <= mix[name] <= 1000:
+            raise LoadTestError(f"weight of '{name}' in --mix must be in [0, 1000]")
+    if sum(mix.values()) <= 0:
+        raise LoadTestError("--mix gives every kind a zero weight")
+    return mix
+
+
+def parse_levels(text: str) -> list[int]:
+    """``"1,4,16"`` -> concurrency levels, each in [1, MAX_CONCURRENCY]."""
+    try:
+        levels = [int(part) for part in text.split(",") if part.strip()]
+    except ValueError:
+        raise LoadTestError(f"--concurrency must be integers like 1,4,16, not '{text}'") from None
+    if not levels or not all(1 <= level <= MAX_CONCURRENCY for level in levels):
+        raise LoadTestError(f"each concurrency level must be in [1, {MAX_CONCURRENCY}]")
+    return levels
+
+
+@dataclass(slots=True)
+class Settings:
+    """What one run asks of the server; the defaults are the real workload."""
+
+    mix: dict[str, float]
+    step_budget_s: float = 2.0
+    plan_budget_s: float = 5.0
+    jump_budget_s: float = 5.0
+    roadmap_nodes: int = 300
+    game_length: int = 8
+    timeout_s: float = 60.0
+
+
+@dataclass(slots=True)
+class User:
+    """One simulated user: its random stream and its Twister game in progress."""
+
+    rng: random.Random
+    state: dict[str, Any] | None = None
+    steps: int = 0
+
+
+class LoadTest:
+    """Runs the ramp against ``http`` (an ``httpx.AsyncClient`` with the server's base URL)."""
+
+    def __init__(self, http: httpx.AsyncClient, settings: Settings, seed: int = 0) -> None:
+        self.http = http
+        self.settings = settings
+        self.seed = seed
+        self.roadmap: str | None = None
+        self.requests: dict[str, Callable[[User], Awaitable[httpx.Response]]] = {
+            "step": self._step,
+            "plan": self._plan,
+            "jump": self._jump,
+            "list": self._list,
+        }
+
+    async def prepare(self, setup_timeout_s: float = 300.0) -> None:
+        """Check the server answers, and build the jump roadmap when jumps are in the mix."""
+        try:
+            health = await self.http.get("/health", timeout=self.settings.timeout_s)
+        except httpx.HTTPError as exc:
+            raise LoadTestError(f"GET /health: {describe(exc, self.settings.timeout_s)}") from exc
+        if health.status_code != 200:
+            raise LoadTestError(f"GET /health answered {health.status_code}")
+        if self.settings.mix.get("jump", 0) > 0:
+            self.roadmap = await self._build_roadmap(setup_timeout_s)
+
+    async def _build_roadmap(self, setup_timeout_s: float) -> str:
+        body = {**ROADMAP, "nodes": self.settings.roadmap_nodes, "seed": self.seed}
+        deadline = time.monotonic() + setup_timeout_s
+        try:
+            response = await self.http.post(
+                "/v1/roadmaps", json=body, timeout=self.settings.timeout_s
+            )
+            while True:
+                if response.status_code >= 400:
+                    raise LoadTestError(f"jump roadmap: {_error_message(response)}")
+                status = response.json()
+                if status["status"] == "done":
+                    return str(status["id"])
+                if status["status"] in ("failed", "interrupted"):
+                    raise LoadTestError(f"jump roadmap {status['status']}: {status['message']}")
+                if time.monotonic() > deadline:
+                    raise LoadTestError(f"jump roadmap not built within {setup_timeout_s:g} s")
+                await asyncio.sleep(ROADMAP_POLL_S)
+                response = await self.http.get(
+                    f"/v1/roadmaps/{status['id']}", timeout=self.settings.timeout_s
+                )
+        except httpx.HTTPError as exc:
+            raise LoadTestError(f"jump roadmap: {describe(exc, self.settings.timeout_s)}") from exc
+
+    async def _step(self, user: User) -> httpx.Response:
+        if user.state is None or user.steps >= self.settings.game_length:
+            body: dict[str, Any] = dict(STEP_START)
+            user.state, user.steps = None, 0
+        else:
+            body = {k: v for k, v in STEP_START.items() if k != "stand_at"}
+            body |= {"state": user.state, "action": {"kind": "auto"}}
+        body |= {"seed": user.rng.randrange(2**31), "time_budget_s": self.settings.step_budget_s}
+        response = await self.http.post("/v1/twister/step", json=body)
+        answer = response.json() if response.status_code == 200 else None
+        if answer is not None and answer.get("status") == "SOLVED":
+            user.state = answer["state"]  # the next move starts where this one ended
+            user.steps += 1
+        else:
+            user.state = None
+        return response
+
+    async def _plan(self, user: User) -> httpx.Response:
+        budget = self.settings.plan_budget_s
+        body = {**PLAN, "seed": user.rng.randrange(2**31), "time_budget_s": budget}
+        return await self.http.post("/v1/plans", json=body)
+
+    async def _jump(self, user: User) -> httpx.Response:
+        body = {
+            **JUMP,
+            "roadmap": self.roadmap,
+            "seed": user.rng.randrange(2**31),
+            "time_budget_s": self.settings.jump_budget_s,
+        }
+        return await self.http.post("/v1/jumps", json=body)
+
+    async def _list(self, user: User) -> httpx.Response:
+        return await self.http.get(user.rng.choice(LIST_PATHS))
+
+    async def level(
+        self, concurrency: int, *, duration_s: float, max_requests: int
+    ) -> dict[str, Any]:
+        """``concurrency`` users for ``duration_s`` (at most ``max_requests`` requests)."""
+        kinds = [kind for kind, weight in self.settings.mix.items() if weight > 0]
+        weights = [self.settings.mix[kind] for kind in kinds]
+        stats = {kind: KindStats() for kind in kinds}
+        started = time.monotonic()
+        deadline = started + duration_s
+        budget = iter(range(max_requests))
+
+        async def user_loop(index: int) -> None:
+            user = User(random.Random(self.seed * 1_000_003 + concurrency * 1009 + index))
+            for _ in budget:
+                if time.monotonic() >= deadline:
+                    return
+                kind = user.rng.choices(kinds, weights)[0]
+                sent = time.perf_counter()
+                try:
+                    response = await self.requests[kind](user)
+                except httpx.HTTPError as exc:
+                    key = "timeout" if isinstance(exc, httpx.TimeoutException) else "connection"
+                    stats[kind].fail(key, describe(exc, self.settings.timeout_s))
+                    user.state = None
+                    continue
+                elapsed = time.perf_counter() - sent
+                if response.status_code < 400:
+                    stats[kind].latencies.append(elapsed)
+                else:
+                    stats[kind].fail(str(response.status_code), _error_message(response))
+
+        await asyncio.gather(*(user_loop(i) for i in range(concurrency)))
+        seconds = time.monotonic() - started
         return {
-            "count": len(ordered),
-            "errors": self.errors,
-            "median_ms": round(statistics.median(ordered) * 1e3, 3),
-            "p95_ms": round(p95 * 1e3, 3),
-            "max_ms": round(ordered[-1] * 1e3, 3),
+            "concurrency": concurrency,
+            "seconds": round(seconds, 3),
+            "kinds": {kind: s.summary(seconds) for kind, s in stats.items()},
         }
 
 
-async def default_paths(http: httpx.AsyncClient) -> list[str]:
-    """A read mix built from what the server serves: health, characters and scenes."""
-    paths = ["/health", "/v1/characters", "/v1/scenes"]
-    characters = (await http.get("/v1/characters")).json()
-    paths += [f"/v1/characters/{c['id']}" for c in characters[:3]]
-    scenes = (await http.get("/v1/scenes")).json()
-    paths += [f"/v1/scenes/{s['id']}" for s in scenes[:3]]
-    return paths
-
-
-async def run_load(
+async def run_ramp(
     http: httpx.AsyncClient,
     *,
-    requests: int,
-    concurrency: int,
+    levels: Sequence[int],
     duration_s: float,
-    paths: Sequence[str] | None = None,
-) -> dict[str, dict[str, float | int]]:
-    """Send up to ``requests`` GETs with ``concurrency`` workers for at most ``duration_s``."""
-    if not 1 <= requests <= MAX_REQUESTS:
-        raise ValueError(f"requests must be in [1, {MAX_REQUESTS}]")
-    if not 1 <= concurrency <= MAX_CONCURRENCY:
-        raise ValueError(f"concurrency must be in [1, {MAX_CONCURRENCY}]")
+    max_requests: int,
+    settings: Settings,
+    seed: int = 0,
+) -> list[dict[str, Any]]:
+    """Prepare, then run each concurrency level in turn; one summary per level."""
     if not 0 < duration_s <= MAX_DURATION_S:
-        raise ValueError(f"duration must be in (0, {MAX_DURATION_S}] seconds")
-    mix = list(paths) if paths else await default_paths(http)
-    stats: dict[str, EndpointStats] = {path: EndpointStats() for path in mix}
-    deadline = time.monotonic() + duration_s
-    counter = iter(range(requests))
+        raise LoadTestError(f"duration must be in (0, {MAX_DURATION_S:g}] seconds")
+    if not 1 <= max_requests <= MAX_REQUESTS:
+        raise LoadTestError(f"requests must be in [1, {MAX_REQUESTS}]")
+    if not levels or not all(1 <= level <= MAX_CONCURRENCY for level in levels):
+        raise LoadTestError(f"each concurrency level must be in [1, {MAX_CONCURRENCY}]")
+    test = LoadTest(http, settings, seed)
+    await test.prepare()
+    return [
+        await test.level(level, duration_s=duration_s, max_requests=max_requests)
+        for level in levels
+    ]
 
-    async def worker() -> None:
-        for index in counter:
-            if time.monotonic() >= deadline:
-                return
-            path = mix[index % len(mix)]
-            start = time.perf_counter()
-            try:
-                response = await http.get(path)
-                ok = response.status_code < 400
-            except httpx.HTTPError:
-                ok = False
-            elapsed = time.perf_counter() - start
-            if ok:
-                stats[path].latencies.append(elapsed)
-            else:
-                stats[path].errors += 1
 
-    await asyncio.gather(*(worker() for _ in range(concurrency)))
-    return {path: s.summary() for path, s in stats.items()}
+def format_table(levels: Sequence[dict[str, Any]]) -> str:
+    """The summaries as a text table, one block per concurrency level."""
+    lines = []
+    for level in levels:
+        lines.append(f"concurrency {level['concurrency']} ({level['seconds']:.1f} s)")
+        lines.append(f"  {'kind':<5} {'count':>6} {'ok':>6} {'per s':>8} {'p50 ms':>9} "
+                     f"{'p99 ms':>9}  errors")  # fmt: skip
+        for kind, s in level["kinds"].items():
+            errors = ", ".join(f"{key}: {count}" for key, count in s["errors"].items()) or "-"
+            p50 = f"{s['p50_ms']:.1f}" if "p50_ms" in s else "-"
+            p99 = f"{s['p99_ms']:.1f}" if "p99_ms" in s else "-"
+            lines.append(
+                f"  {kind:<5} {s['count']:>6} {s['ok']:>6} {s['per_second']:>8.2f} "
+                f"{p50:>9} {p99:>9}  {errors}"
+            )
+            for key, message in s["error_examples"].items():
+                lines.append(f"        {key}: {message}")
+    return "\n".join(lines)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--url", default="http://127.0.0.1:8000")
-    parser.add_argument("--requests", type=int, default=200)
-    parser.add_argument("--concurrency", type=int, default=8)
-    parser.add_argument("--duration", type=float, default=60.0, help="seconds, at most 3600")
-    parser.add_argument("--timeout", type=float, default=30.0, help="per request, seconds")
+    parser.add_argument("--concurrency", default="1,4,16", help="levels, e.g. 1,4,16,64")
+    parser.add_argument("--duration", type=float, default=20.0, help="seconds per level")
+    parser.add_argument("--requests", type=int, default=MAX_REQUESTS, help="at most, per level")
+    parser.add_argument("--mix", default=DEFAULT_MIX, help=f"kind weights ({DEFAULT_MIX})")
+    parser.add_argument("--timeout", type=float, default=60.0, help="per request, seconds")
+    parser.add_argument("--game-length", type=int, default=8, help="Twister steps per game")
+    parser.add_argument("--roadmap-nodes", type=int, default=300, help="jump roadmap size")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     args = parser.parse_args(argv)
 
-    async def go() -> dict[str, dict[str, float | int]]:
+    async def go() -> list[dict[str, Any]]:
+        settings = Settings(
+            mix=parse_mix(args.mix),
+            game_length=args.game_length,
+            roadmap_nodes=args.roadmap_nodes,
+            timeout_s=args.timeout,
+        )
         async with httpx.AsyncClient(base_url=args.url, timeout=args.timeout) as http:
-            return await run_load(
+            return await run_ramp(
                 http,
-                requests=args.requests,
-                concurrency=args.concurrency,
+                levels=parse_levels(args.concurrency),
                 duration_s=args.duration,
+                max_requests=args.requests,
+                settings=settings,
+                seed=args.seed,
             )
 
     try:
-        summary = asyncio.run(go())
-    except (ValueError, httpx.HTTPError) as exc:
+        levels = asyncio.run(go())
+    except LoadTestError as exc:
         print(f"load test failed: {exc}", file=sys.stderr)
         return 2
-    print(json.dumps(summary, indent=2))
-    return 0 if all(s["errors"] == 0 for s in summary.values()) else 1
+    except httpx.HTTPError as exc:
+        print(f"load test failed: {describe(exc, args.timeout)}", file=sys.stderr)
+        return 2
+    print(json.dumps(levels, indent=2) if args.json else format_table(levels))
+    failed = any(s["errors"] for level in levels for s in level["kinds"].values())
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":

@@ -7,12 +7,27 @@ from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
 from fastapi import FastAPI
+from starlette.middleware.cors import CORSMiddleware
+from starlette.middleware.gzip import GZipMiddleware
 
-from service import __version__
+from service import __version__, openapi
 from service.errors import install_error_handlers
+from service.files import remove_leftovers
+from service.metrics import Metrics
 from service.results import ResultStore, code_version
-from service.routes import characters, health, jumps, plans, results, scenes, twister, viewer
+from service.routes import (
+    characters,
+    health,
+    jumps,
+    metrics,
+    plans,
+    results,
+    scenes,
+    twister,
+    viewer,
+)
 from service.settings import Settings, get_settings
+from service.telemetry import REQUEST_ID_HEADER, Telemetry, configure_logging
 from service.workers import WorkerPool, registry_for
 
 log = logging.getLogger("gecko")
@@ -21,14 +36,18 @@ log = logging.getLogger("gecko")
 def create_app(settings: Settings | None = None) -> FastAPI:
     """Build the app; the registry (characters, offline data) loads in the lifespan."""
     settings = settings or get_settings()
+    configure_logging(settings.log_level)
+    app_metrics = Metrics()
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        for directory in (settings.scenes_path, settings.results_path, settings.roadmaps_path):
+            remove_leftovers(directory, older_than_s=settings.leftover_min_age_s)
         registry = registry_for(settings)
         registry.preload()
         app.state.registry = registry
         settings.roadmaps_path.mkdir(parents=True, exist_ok=True)
-        app.state.pool = WorkerPool(settings)
+        app.state.pool = WorkerPool(settings, app_metrics)
         app.state.roadmap_jobs = {}
         log.info("code version %s", code_version())  # hashed once, before any request
         app.state.results = ResultStore(
@@ -47,10 +66,16 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         version=__version__,
         description="Multi-contact motion planning for legged characters.",
         lifespan=lifespan,
+        docs_url=None,  # served by service.openapi from local assets, not a CDN
+        redoc_url=None,
     )
     app.state.settings = settings
+    app.state.metrics = app_metrics
+    app.state.roadmap_jobs = {}
+    app_metrics.watch_roadmap_jobs(lambda: app.state.roadmap_jobs)
     install_error_handlers(app)
     app.include_router(health.router)
+    app.include_router(metrics.router)
     app.include_router(characters.router)
     app.include_router(scenes.router)
     app.include_router(plans.router)
@@ -58,4 +83,20 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(jumps.router)
     app.include_router(results.router)
     viewer.install(app)
+    openapi.install(app)
+    # Outermost last: telemetry sees the final status and times everything, CORS headers go
+    # on every answer (errors too), gzip compresses what the routes answer.
+    app.add_middleware(
+        GZipMiddleware, minimum_size=settings.gzip_minimum_bytes, compresslevel=settings.gzip_level
+    )
+    if settings.cors_origins:
+        app.add_middleware(
+            CORSMiddleware,
+            allow_origins=settings.cors_origins,
+            allow_methods=["GET", "POST", "DELETE"],
+            allow_headers=["content-type", REQUEST_ID_HEADER.lower()],
+            expose_headers=[REQUEST_ID_HEADER, "Location", "Retry-After", "Content-Disposition"],
+            max_age=600,
+        )
+    app.add_middleware(Telemetry, metrics=app_metrics)
     return app

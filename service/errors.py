@@ -9,6 +9,8 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
+from service.context import annotate
+
 
 class ApiError(Exception):
     """An error with an HTTP status, a stable code, a message and the offending field."""
@@ -31,7 +33,8 @@ def not_found(kind: str, identifier: str, field: str) -> ApiError:
 
 
 def error_body(code: str, message: str, field: str | None) -> dict[str, Any]:
-    """The JSON error envelope."""
+    """The JSON error envelope (its code and field also go to the request's log line)."""
+    annotate(error_code=code, error_field=field)
     return {"error": {"code": code, "message": message, "field": field}}
 
 

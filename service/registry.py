@@ -27,6 +27,8 @@ from planner.character import (
 )
 from planner.offline import OfflineData, load_offline_data
 from planner.scene import Scene, build_scene, builtin_scene_ids, load_builtin_scene
+from planner.scene.collision import bvh_cache_path
+from service.files import is_temporary
 
 log = logging.getLogger("gecko.registry")
 
@@ -102,7 +104,12 @@ class Registry:
         return tuple(builtin_scene_ids())
 
     def uploaded_scene_ids(self) -> list[str]:
-        return sorted(p.stem for p in self.scenes_dir.glob("*.json"))
+        """Ids of the uploaded scenes on disk (temporary files of writes never count)."""
+        return sorted(
+            path.stem
+            for path in self.scenes_dir.glob("*.json")
+            if not is_temporary(path.name) and _is_safe_id(path.stem)
+        )
 
     def scene_ids(self) -> list[str]:
         return [*self.builtin_scene_ids(), *self.uploaded_scene_ids()]
@@ -113,13 +120,18 @@ class Registry:
     def get_scene(self, scene_id: str) -> Scene | None:
         """The scene with this id, loading it on first use; None if unknown."""
         with self._lock:
-            if scene_id in self._scenes:
-                return self._scenes[scene_id]
+            cached = self._scenes.get(scene_id)
+        if cached is not None:
+            if self.is_builtin(scene_id) or self._meta_file(scene_id).exists():
+                return cached
+            with self._lock:  # deleted (perhaps by another process) since it was loaded
+                self._scenes.pop(scene_id, None)
+            return None
         if self.is_builtin(scene_id):
             scene = load_builtin_scene(scene_id, cache_dir=self.cache_dir)
         else:
             scene_file = self.scenes_dir / f"{scene_id}.npz"
-            meta_file = self.scenes_dir / f"{scene_id}.json"
+            meta_file = self._meta_file(scene_id)
             if not (_is_safe_id(scene_id) and scene_file.exists() and meta_file.exists()):
                 return None
             meta = json.loads(meta_file.read_text())
@@ -154,6 +166,26 @@ class Registry:
         with self._lock:
             self._scenes[scene.id] = scene
         return scene
+
+    def _meta_file(self, scene_id: str) -> Path:
+        return self.scenes_dir / f"{scene_id}.json"
+
+    def delete_uploaded_scene(self, scene_id: str) -> bool:
+        """Remove an uploaded scene: its mesh, its metadata and its cached BVH; False if there
+        was no such uploaded scene. Built-in scenes are never removed (the caller refuses)."""
+        if self.is_builtin(scene_id) or not _is_safe_id(scene_id):
+            return False
+        meta_file = self._meta_file(scene_id)
+        existed = meta_file.exists()
+        # The metadata goes first: without it the scene is no longer listed nor loaded.
+        meta_file.unlink(missing_ok=True)
+        (self.scenes_dir / f"{scene_id}.npz").unlink(missing_ok=True)
+        with self._lock:
+            scene = self._scenes.pop(scene_id, None)
+        # An uploaded scene's id is its content hash, which also keys its BVH cache file.
+        content_hash = scene.content_hash if scene is not None else scene_id
+        bvh_cache_path(self.cache_dir, content_hash).unlink(missing_ok=True)
+        return existed
 
 
 def default_character_ids() -> list[str]:

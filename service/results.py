@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from service import __version__
+from service.files import is_temporary
 from service.settings import REPO_ROOT
 
 log = logging.getLogger("gecko.results")
@@ -131,6 +132,8 @@ class ResultStore:
         """Summaries of the most recently used results, newest first, at most ``limit``."""
         entries = []
         for meta_path in self.directory.glob("*.meta.json"):
+            if is_temporary(meta_path.name):
+                continue
             try:
                 entries.append((meta_path.stat().st_mtime, meta_path))
             except OSError:
@@ -153,7 +156,7 @@ class ResultStore:
         how many were removed. ``keep`` is never removed."""
         entries = []
         for path in self.directory.glob("*.json"):
-            if path.name.endswith(".meta.json") or path.name.startswith(".tmp-"):
+            if path.name.endswith(".meta.json") or is_temporary(path.name):
                 continue
             meta_path = path.with_name(f"{path.stem}.meta.json")
             try:

@@ -6,19 +6,41 @@ import math
 from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic.config import JsonDict
 
 Vector3 = tuple[float, float, float]
 Quaternion = tuple[float, float, float, float]
 
 
 class ErrorDetail(BaseModel):
-    code: str
-    message: str
-    field: str | None = None
+    code: str = Field(description="stable machine-readable code (not_found, invalid_request, ...)")
+    message: str = Field(description="what is wrong, naming the limit when there is one")
+    field: str | None = Field(
+        default=None, description="the offending field, dotted (start.stand_at), or null"
+    )
 
 
 class ErrorBody(BaseModel):
+    """Every error answer (4xx, 5xx): ``{"error": {"code", "message", "field"}}``."""
+
     error: ErrorDetail
+
+
+# The domain status of an answer (always HTTP 200); planner.result.PlanStatus's values.
+PlanStatusName = Literal[
+    "SOLVED", "APPROXIMATE", "INVALID_START", "INVALID_GOAL", "TIMEOUT", "INFEASIBLE"
+]
+StepStatusName = Literal["SOLVED", "INFEASIBLE"]
+
+
+def _exactly_one_of(first: str, second: str) -> JsonDict:
+    """JSON Schema for "exactly one of two optional fields is given (and not null)"."""
+    return {
+        "oneOf": [
+            {"required": [name], "properties": {name: {"not": {"type": "null"}}}}
+            for name in (first, second)
+        ]
+    }
 
 
 class Health(BaseModel):
@@ -106,11 +128,19 @@ class SceneDetail(BaseModel):
 
 MAX_TIME_BUDGET_S = 60.0
 MAX_COORDINATE = 10_000.0
-MAX_SEED = 2**63 - 1
+MAX_SEED = 2**53 - 1  # the largest integer a JSON number carries exactly in JavaScript
 
 Coordinate = Annotated[float, Field(ge=-MAX_COORDINATE, le=MAX_COORDINATE)]
 Point3 = tuple[Coordinate, Coordinate, Coordinate]
-Seed = Annotated[int, Field(ge=0, le=MAX_SEED, description="replays the answer bit for bit")]
+Seed = Annotated[
+    int,
+    Field(
+        ge=0,
+        le=MAX_SEED,
+        description="replays the answer bit for bit; at most 2^53 - 1, so that JavaScript and "
+        "other JSON readers keeping numbers as doubles replay it exactly",
+    ),
+]
 TimeBudget = Annotated[
     float, Field(gt=0, le=MAX_TIME_BUDGET_S, description="seconds of planning, at most 60")
 ]
@@ -136,9 +166,13 @@ class PoseIn(BaseModel):
 
 
 class EndpointIn(BaseModel):
-    """Where a motion starts or ends: a root pose, or ``stand_at`` a point on the scene."""
+    """Where a motion starts or ends: exactly one of ``position`` (a root pose, with an
+    optional ``orientation``) or ``stand_at`` (a point on the scene where the service finds a
+    balanced standing state)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(
+        extra="forbid", json_schema_extra=_exactly_one_of("position", "stand_at")
+    )
 
     position: Point3 | None = None
     orientation: tuple[float, float, float, float] | None = None
@@ -244,7 +278,23 @@ class OtherCharacterIn(BaseModel):
 
 
 class TwisterStepRequest(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    """One Twister move from exactly one of ``state`` (an earlier answer's) or ``stand_at``."""
+
+    model_config = ConfigDict(
+        extra="forbid",
+        json_schema_extra={
+            **_exactly_one_of("state", "stand_at"),
+            "examples": [
+                {
+                    "character": "quadruped",
+                    "scene": "twister",
+                    "stand_at": [0, 0, 0],
+                    "action": {"kind": "break", "limb": "lf_foot"},
+                    "seed": 3,
+                }
+            ],
+        },
+    )
 
     character: str = Field(max_length=100)
     scene: str = Field(max_length=128)
@@ -286,7 +336,7 @@ class TwisterStepResponse(BaseModel):
     id: str = Field(
         default="", description="content id of this answer: GET it again as JSON or as .glb"
     )
-    status: str
+    status: StepStatusName = Field(description="INFEASIBLE: see failure; the state is unchanged")
     seed: int
     state: StateOut
     phases: list[PhaseOut]
@@ -340,7 +390,21 @@ class JumpOut(BaseModel):
 
 
 class JumpRequest(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(
+        extra="forbid",
+        json_schema_extra={
+            "examples": [
+                {
+                    "character": "quadruped",
+                    "scene": "gaps",
+                    "start": {"stand_at": [0.75, 0, 0.6]},
+                    "goal": {"stand_at": [8.25, 0, 1.0]},
+                    "nodes": 300,
+                    "seed": 2,
+                }
+            ]
+        },
+    )
 
     character: str = Field(max_length=100)
     scene: str = Field(max_length=128)
@@ -360,7 +424,7 @@ class JumpResponse(BaseModel):
     id: str = Field(
         default="", description="content id of this answer: GET it again as JSON or as .glb"
     )
-    status: str
+    status: PlanStatusName
     seed: int
     jumps: list[JumpOut]
     keyframes: list[KeyframeOut]
@@ -434,7 +498,21 @@ class PlanOptionsIn(BaseModel):
 
 
 class PlanRequest(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(
+        extra="forbid",
+        json_schema_extra={
+            "examples": [
+                {
+                    "character": "humanoid",
+                    "scene": "flat",
+                    "start": {"stand_at": [0, 0, 0]},
+                    "goal": {"stand_at": [1.5, 0, 0]},
+                    "seed": 1,
+                    "time_budget_s": 10,
+                }
+            ]
+        },
+    )
 
     character: str = Field(max_length=100)
     scene: str = Field(max_length=128)
@@ -449,7 +527,10 @@ class PlanResponse(BaseModel):
     id: str = Field(
         default="", description="content id of this answer: GET it again as JSON or as .glb"
     )
-    status: str
+    status: PlanStatusName = Field(
+        description="SOLVED, APPROXIMATE (a partial plan, kept), INVALID_START, INVALID_GOAL, "
+        "TIMEOUT or INFEASIBLE"
+    )
     seed: int
     message: str = ""
     phases: list[PhaseOut]
@@ -467,7 +548,7 @@ class ResultSummary(BaseModel):
     kind: Literal["plan", "step", "jump"]
     character: str | None = None
     scene: str | None = None
-    status: str | None = None
+    status: PlanStatusName | None = None
     seed: int | None = None
     keyframes: int = Field(default=0, description="number of keyframes")
     duration: float = Field(default=0.0, description="time of the last keyframe, s")

@@ -4,11 +4,18 @@ from __future__ import annotations
 
 from functools import lru_cache
 from pathlib import Path
+from typing import Annotated, Literal
 
-from pydantic import Field
-from pydantic_settings import BaseSettings, SettingsConfigDict
+from pydantic import Field, field_validator
+from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
+# Upper bounds (s) of the request latency histogram's buckets: /health and listings take
+# milliseconds, Twister steps tenths of a second, plans and jumps seconds (budget at most 60).
+LATENCY_BUCKETS_S = (
+    0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 20.0, 40.0, 80.0,
+)  # fmt: skip
+LogLevel = Literal["debug", "info", "warning", "error"]
 
 
 class Settings(BaseSettings):
@@ -46,6 +53,48 @@ class Settings(BaseSettings):
         le=1024**4,
         description="bytes of stored results kept (least recently used go)",
     )
+
+    leftover_min_age_s: float = Field(
+        default=60.0,
+        ge=0,
+        le=86_400,
+        description="s; temporary files of interrupted writes older than this are removed at "
+        "start-up (younger ones may be another service worker's write in progress)",
+    )
+
+    log_level: LogLevel = Field(
+        default="info", description="level of the service's JSON log lines (one per request)"
+    )
+    cors_origins: Annotated[list[str], NoDecode] = Field(
+        default_factory=list,
+        description="origins browsers may call the API from, comma-separated (e.g. "
+        "'https://a.example,http://localhost:5173', or '*'); empty: no CORS headers",
+    )
+    gzip_minimum_bytes: int = Field(
+        default=1024,
+        ge=0,
+        le=1024**3,
+        description="answers of at least this many bytes are gzipped for clients that accept "
+        "it (Accept-Encoding: gzip)",
+    )
+    gzip_level: int = Field(
+        default=6, ge=1, le=9, description="gzip compression level (1 fastest, 9 smallest)"
+    )
+
+    @field_validator("cors_origins", mode="before")
+    @classmethod
+    def _split_origins(cls, value: object) -> object:
+        if isinstance(value, str):
+            return [part.strip() for part in value.split(",") if part.strip()]
+        return value
+
+    @field_validator("cors_origins")
+    @classmethod
+    def _check_origins(cls, value: list[str]) -> list[str]:
+        for origin in value:
+            if origin != "*" and not origin.startswith(("http://", "https://")):
+                raise ValueError(f"CORS origin '{origin}' must be '*' or start with http(s)://")
+        return [origin.rstrip("/") for origin in value]
 
     @property
     def cache_path(self) -> Path:

@@ -16,6 +16,7 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any, TypeVar
 
 from service.errors import ApiError
+from service.metrics import Metrics
 from service.registry import Registry
 from service.settings import Settings
 
@@ -68,11 +69,13 @@ def _ping() -> int:
 class WorkerPool:
     """Runs picklable functions in worker processes; recreated if a worker dies."""
 
-    def __init__(self, settings: Settings) -> None:
+    def __init__(self, settings: Settings, metrics: Metrics | None = None) -> None:
         # One BLAS thread per worker: the matrices are small, and workers share the cores.
         for variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
             os.environ.setdefault(variable, "1")
         self._settings = settings
+        self._metrics = metrics or Metrics()
+        self._metrics.worker_processes.set(settings.worker_processes)
         self._executor = self._new_executor()
 
     def _new_executor(self) -> ProcessPoolExecutor:
@@ -95,20 +98,37 @@ class WorkerPool:
     async def run(self, function: Callable[..., T], *args: Any, timeout_s: float) -> T:
         """Run ``function(*args)`` in a worker; 503 if the pool broke, 504 past ``timeout_s``."""
         loop = asyncio.get_running_loop()
+        executor = self._executor
+        self._metrics.worker_tasks.inc()
         try:
-            future = loop.run_in_executor(self._executor, function, *args)
+            future = loop.run_in_executor(executor, function, *args)
             return await asyncio.wait_for(future, timeout=timeout_s)
         except BrokenProcessPool as exc:
             log.error("a planning worker died: %r", exc)
-            self._executor.shutdown(wait=False, cancel_futures=True)
-            self._executor = self._new_executor()
+            self._replace(executor)
             raise ApiError(503, "worker_lost", "a planning worker died; retry", None) from exc
         except TimeoutError as exc:
             raise ApiError(504, "timeout", f"no answer within {timeout_s:.1f} s", None) from exc
+        finally:
+            self._metrics.worker_tasks.dec()
+
+    def _replace(self, broken: ProcessPoolExecutor) -> None:
+        """A new pool in place of ``broken``, once (every task of a broken pool fails)."""
+        if broken is not self._executor:
+            return
+        broken.shutdown(wait=False, cancel_futures=True)
+        self._executor = self._new_executor()
+        self._metrics.worker_restarts.inc()
 
     def submit(self, function: Callable[..., T], *args: Any) -> Future[T]:
         """Start background work (e.g. a roadmap build); it records its own result."""
-        return self._executor.submit(function, *args)
+        executor = self._executor
+        try:
+            return executor.submit(function, *args)
+        except BrokenProcessPool:
+            log.error("the planning pool was broken; starting a new one")
+            self._replace(executor)
+            return self._executor.submit(function, *args)
 
     def shutdown(self) -> None:
         self._executor.shutdown(wait=False, cancel_futures=True)

@@ -54,6 +54,7 @@ def gecko_url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
         scenes_dir=home / "scenes",
         characters="humanoid,quadruped",
         worker_processes=1,
+        log_level="warning",  # request lines from the server's thread would land between tests
     )
     with live_server(settings) as url:
         yield url

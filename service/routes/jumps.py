@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import secrets
 from concurrent.futures import Future
 from typing import Any
 
@@ -20,6 +19,7 @@ from service.routes.results import (
     FormatQuery,
     OverlaysQuery,
     SceneQuery,
+    draw_seed,
     remember,
     stored_answer,
 )
@@ -71,7 +71,15 @@ def _status(request: Request, store: RoadmapStore, rid: str) -> RoadmapStatus | 
     )
 
 
-@router.post("/roadmaps", status_code=202, responses=_ERRORS)
+@router.post(
+    "/roadmaps",
+    status_code=202,
+    responses={
+        **_ERRORS,
+        200: {"model": RoadmapStatus, "description": "the roadmap is already built"},
+        202: {"model": RoadmapStatus, "description": "queued or building; poll its id"},
+    },
+)
 async def create_roadmap(
     body: RoadmapRequest, request: Request, registry: RegistryDep, settings: SettingsDep
 ) -> JSONResponse:
@@ -89,7 +97,7 @@ async def create_roadmap(
     return JSONResponse(current.model_dump(mode="json"), status_code=code)
 
 
-@router.get("/roadmaps/{roadmap_id}", responses=_ERRORS)
+@router.get("/roadmaps/{roadmap_id}", responses={404: _ERRORS[404]})
 async def get_roadmap(roadmap_id: str, request: Request, settings: SettingsDep) -> RoadmapStatus:
     """Status (queued, running, done, failed, interrupted), progress in [0, 1] and size."""
     if not roadmap_id.isalnum() or len(roadmap_id) > 64:
@@ -100,10 +108,17 @@ async def get_roadmap(roadmap_id: str, request: Request, settings: SettingsDep) 
     return status
 
 
-@router.post("/jumps", responses={**_ERRORS, 504: {"model": ErrorBody}})
+@router.post(
+    "/jumps",
+    responses={
+        **_ERRORS,
+        503: {"model": ErrorBody, "description": "a planning process died; retry"},
+        504: {"model": ErrorBody, "description": "the worker did not answer in time"},
+    },
+)
 async def create_jumps(body: JumpRequest, request: Request) -> JumpResponse:
     """Plan a sequence of ballistic jumps (on a given roadmap, or one built within budget)."""
-    seed = body.seed if body.seed is not None else secrets.randbits(63)
+    seed = body.seed if body.seed is not None else draw_seed()
     answer = await request.app.state.pool.run(
         compute.run_jumps, body.model_dump_json(), seed, timeout_s=body.time_budget_s + GRACE_S
     )

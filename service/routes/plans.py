@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import secrets
 from typing import Any
 
 from fastapi import APIRouter, Request
@@ -14,6 +13,7 @@ from service.routes.results import (
     FormatQuery,
     OverlaysQuery,
     SceneQuery,
+    draw_seed,
     remember,
     stored_answer,
 )
@@ -23,6 +23,7 @@ router = APIRouter(prefix="/v1", tags=["plans"])
 _ERRORS: dict[int | str, dict[str, Any]] = {
     404: {"model": ErrorBody, "description": "unknown character or scene"},
     422: {"model": ErrorBody, "description": "invalid request"},
+    503: {"model": ErrorBody, "description": "a planning process died; retry"},
     504: {"model": ErrorBody, "description": "the worker did not answer in time"},
 }
 GRACE_S = 15.0  # beyond the plan's own budget: keyframes, start-up of a fresh worker
@@ -31,7 +32,7 @@ GRACE_S = 15.0  # beyond the plan's own budget: keyframes, start-up of a fresh w
 @router.post("/plans", responses=_ERRORS)
 async def create_plan(body: PlanRequest, request: Request) -> PlanResponse:
     """Plan a multi-contact motion; the answer's ``status`` says how it went (always 200)."""
-    seed = body.seed if body.seed is not None else secrets.randbits(63)
+    seed = body.seed if body.seed is not None else draw_seed()
     answer = await request.app.state.pool.run(
         compute.run_plan,
         body.model_dump_json(),

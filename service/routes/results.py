@@ -3,6 +3,7 @@ GLB (the routes of each kind call :func:`stored_answer`)."""
 
 from __future__ import annotations
 
+import secrets
 from typing import Annotated, Any, Literal, TypeVar
 
 from anyio import to_thread
@@ -10,11 +11,12 @@ from fastapi import APIRouter, Query, Request
 from fastapi.responses import Response
 from pydantic import BaseModel, ValidationError
 
+from service.context import annotate
 from service.deps import RegistryDep
 from service.errors import ApiError, not_found
 from service.export import result_glb
 from service.results import Kind, ResultStore, StoredResult, result_id
-from service.schemas import ErrorBody, ResultSummary
+from service.schemas import MAX_SEED, ErrorBody, ResultSummary
 
 Answer = TypeVar("Answer", bound=BaseModel)
 router = APIRouter(prefix="/v1", tags=["results"])
@@ -40,6 +42,11 @@ OverlaysQuery = Annotated[
 ]
 
 
+def draw_seed() -> int:
+    """A seed for a request without one, in [0, 2^53 - 1] (exact as a JavaScript number)."""
+    return secrets.randbelow(MAX_SEED + 1)
+
+
 def store_of(request: Request) -> ResultStore:
     """The app's result store."""
     store: ResultStore = request.app.state.results
@@ -63,6 +70,9 @@ async def remember(
     }
     stored = StoredResult(kind, rid, {**request_json, "seed": seed}, answer)
     await to_thread.run_sync(store_of(request).put, stored, summary)
+    status = str(answer.get("status"))
+    request.app.state.metrics.observe_answer(kind, status)
+    annotate(kind=kind, result=rid, seed=seed, answer_status=status, timings=answer.get("timings"))
     return answer
 
 

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import logging
 from typing import Annotated, Any, Literal
 
 import trimesh
 from anyio import to_thread
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import Response
+from starlette.status import HTTP_204_NO_CONTENT
 
 from planner.scene import Scene, SceneError, load_mesh
 from service import convert
@@ -21,6 +23,7 @@ router = APIRouter(prefix="/v1/scenes", tags=["scenes"])
 _404: dict[int | str, dict[str, Any]] = {404: {"model": ErrorBody, "description": "unknown scene"}}
 UploadFormat = Literal["stl", "obj", "ply", "glb", "gltf", "dae"]
 MAX_NAME_LENGTH = 200
+log = logging.getLogger("gecko.scenes")
 
 
 async def _scene(registry: Registry, scene_id: str) -> Scene:
@@ -32,11 +35,17 @@ async def _scene(registry: Registry, scene_id: str) -> Scene:
 
 @router.get("")
 async def list_scenes(registry: RegistryDep) -> list[SceneSummary]:
-    """Built-in scenes first, then uploaded ones."""
+    """Built-in scenes first, then uploaded ones (a stored scene that cannot be read is left
+    out and logged: one broken file must not fail the listing for everyone)."""
     out = []
     for scene_id in registry.scene_ids():
-        scene = await _scene(registry, scene_id)
-        out.append(convert.scene_summary(scene, registry.is_builtin(scene_id)))
+        try:
+            scene = await to_thread.run_sync(registry.get_scene, scene_id)
+        except Exception as exc:
+            log.error("scene %s cannot be loaded: %s: %s", scene_id, type(exc).__name__, exc)
+            continue
+        if scene is not None:  # None: deleted since the ids were read
+            out.append(convert.scene_summary(scene, registry.is_builtin(scene_id)))
     return out
 
 
@@ -45,6 +54,26 @@ async def get_scene(scene_id: str, registry: RegistryDep) -> SceneDetail:
     """Bounds, triangle count and affordance surfaces (polygons, normals, kinds, areas)."""
     scene = await _scene(registry, scene_id)
     return convert.scene_detail(scene, registry.is_builtin(scene_id))
+
+
+@router.delete(
+    "/{scene_id}",
+    status_code=HTTP_204_NO_CONTENT,
+    response_class=Response,
+    responses={
+        **_404,
+        403: {"model": ErrorBody, "description": "built-in scenes cannot be deleted"},
+    },
+)
+async def delete_scene(scene_id: str, registry: RegistryDep) -> Response:
+    """Delete an uploaded scene: its mesh, metadata and collision cache. Requests naming it
+    then get 404; stored results that used it stay readable (their GLB without the scene)."""
+    if registry.is_builtin(scene_id):
+        message = f"scene '{scene_id}' is built in; only uploaded scenes can be deleted"
+        raise ApiError(403, "builtin_scene", message, "scene_id")
+    if not await to_thread.run_sync(registry.delete_uploaded_scene, scene_id):
+        raise not_found("scene", scene_id, "scene_id")
+    return Response(status_code=HTTP_204_NO_CONTENT)
 
 
 @router.get(

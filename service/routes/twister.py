@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import secrets
 from typing import Any
 
 from fastapi import APIRouter, Request
@@ -14,6 +13,7 @@ from service.routes.results import (
     FormatQuery,
     OverlaysQuery,
     SceneQuery,
+    draw_seed,
     remember,
     stored_answer,
 )
@@ -23,6 +23,7 @@ router = APIRouter(prefix="/v1/twister", tags=["twister"])
 _ERRORS: dict[int | str, dict[str, Any]] = {
     404: {"model": ErrorBody, "description": "unknown character or scene"},
     422: {"model": ErrorBody, "description": "invalid request"},
+    503: {"model": ErrorBody, "description": "a planning process died; retry"},
     504: {"model": ErrorBody, "description": "the worker did not answer in time"},
 }
 GRACE_S = 15.0
@@ -35,7 +36,7 @@ async def twister_step(body: TwisterStepRequest, request: Request) -> TwisterSte
     A move that cannot be made answers 200 with status INFEASIBLE and a ``failure`` saying
     why (nothing reachable, not balanced, collision); the state is then unchanged.
     """
-    seed = body.seed if body.seed is not None else secrets.randbits(63)
+    seed = body.seed if body.seed is not None else draw_seed()
     answer = await request.app.state.pool.run(
         compute.run_twister_step,
         body.model_dump_json(),
