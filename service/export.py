@@ -67,8 +67,10 @@ def _outline(contacts: list[ContactTriple], mass: float) -> FloatArray:
         return np.zeros((0, 3))
 
 
-def _phase_marks(phases: list[dict[str, Any]], mass: float) -> tuple[PhaseMarks, ...]:
-    """Plan or step phases with their contact points and equilibrium outline."""
+def _phase_marks(
+    phases: list[dict[str, Any]], mass: float, outlines: bool
+) -> tuple[PhaseMarks, ...]:
+    """Plan or step phases with their contact points (and equilibrium outlines)."""
     marks = []
     for phase in phases:
         contacts = phase["contacts"]
@@ -88,7 +90,7 @@ def _phase_marks(phases: list[dict[str, Any]], mass: float) -> tuple[PhaseMarks,
                 t1=t1,
                 limbs=tuple(c["limb"] for c in contacts),
                 points=np.asarray(points, dtype=np.float64).reshape(-1, 3),
-                equilibrium=_outline(triples, mass),
+                equilibrium=_outline(triples, mass) if outlines else np.zeros((0, 3)),
             )
         )
     return tuple(marks)
@@ -130,10 +132,17 @@ def _jump_phase_marks(
 
 
 def overlays_of(
-    result: StoredResult, character: Character, times: FloatArray, qs: FloatArray, contacts: Any
+    result: StoredResult,
+    character: Character,
+    times: FloatArray,
+    qs: FloatArray,
+    contacts: Any,
+    *,
+    outlines: bool = True,
 ) -> Overlays:
-    """COM curve (plans, steps) or jump parabolas (jumps), and the contact phases with
-    their static-equilibrium outlines."""
+    """Contact phases; with ``outlines`` (what a viewer draws, not the timeline) also the
+    COM curve (plans, steps) or jump parabolas (jumps) and the phases' static-equilibrium
+    outlines."""
     response = result.response
     if result.kind == "jump":
         jumps = response.get("jumps", [])
@@ -146,13 +155,13 @@ def overlays_of(
             for j in jumps
         )
         marks = phases_from_keyframes(character, times, qs, contacts)
-        return Overlays(arcs, _jump_phase_marks(character, jumps, marks))
+        return Overlays(arcs, _jump_phase_marks(character, jumps, marks) if outlines else marks)
     segments = [
         (float(s["t0"]), float(s["t1"]), np.asarray(s["control_points"], dtype=np.float64))
         for s in response.get("com", [])
     ]
-    com = bezier_polyline(segments)
-    phases = _phase_marks(response.get("phases", []), float(character.mass))
+    com = bezier_polyline(segments) if outlines else np.zeros((0, 3))
+    phases = _phase_marks(response.get("phases", []), float(character.mass), outlines)
     return Overlays((com,) if len(com) >= 2 else (), phases)
 
 
@@ -191,7 +200,7 @@ def result_glb(
         raise ApiError(409, "no_motion", message, "id")
     character = entry.character
     times, qs, contacts = keyframe_arrays(character, keyframes)
-    overlays = overlays_of(result, character, times, qs, contacts)
+    overlays = overlays_of(result, character, times, qs, contacts, outlines=with_overlays)
     mesh = None
     if with_scene:
         scene_id = str(result.request.get("scene", ""))
