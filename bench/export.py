@@ -33,6 +33,7 @@ from service.export import result_glb  # noqa: E402
 from service.results import StoredResult  # noqa: E402
 from service.settings import Settings  # noqa: E402
 from service.workers import registry_for  # noqa: E402
+from tests.headless_browser import chromium_paths, start_chromium  # noqa: E402
 from tests.live_server import live_server  # noqa: E402
 from tests.paths import gecko_cache_dir  # noqa: E402
 
@@ -53,25 +54,11 @@ def _median_ms(function: Any, repeats: int) -> float:
 
 def first_paint_ms(url: str, rid: str, runs: int = 3) -> tuple[float, float] | None:
     """Median (page request -> first frame with the motion, GLB load -> that frame), ms."""
-    chromium, driver_path = shutil.which("chromium"), shutil.which("chromedriver")
-    if chromium is None or driver_path is None:
+    paths = chromium_paths()
+    if paths is None:
         print("viewer first paint: chromium/chromedriver not installed, skipped")
         return None
-    from selenium import webdriver
-    from selenium.webdriver.chrome.service import Service
-
-    options = webdriver.ChromeOptions()
-    options.binary_location = chromium
-    for argument in (
-        "--headless=new",
-        "--no-sandbox",
-        "--disable-dev-shm-usage",
-        "--window-size=1100,800",
-        "--use-angle=swiftshader",
-        "--enable-unsafe-swiftshader",
-    ):
-        options.add_argument(argument)
-    driver = webdriver.Chrome(service=Service(executable_path=driver_path), options=options)
+    driver = start_chromium(paths)
     totals, loads = [], []
     try:
         for _ in range(runs):

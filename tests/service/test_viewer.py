@@ -5,7 +5,6 @@ moves the character, and its timeline lists the plan's phases."""
 from __future__ import annotations
 
 import io
-import shutil
 import time
 from collections.abc import Iterator
 from typing import Any
@@ -17,36 +16,21 @@ import pytest
 webdriver = pytest.importorskip("selenium.webdriver", reason="selenium is not installed")
 Image = pytest.importorskip("PIL.Image", reason="pillow is not installed")
 
+from tests.headless_browser import chromium_paths, start_chromium  # noqa: E402
+
 READY_TIMEOUT_S = 90.0
 
 
 @pytest.fixture(scope="module")
 def browser() -> Iterator[Any]:
     """Headless Chromium driven by chromedriver, WebGL through SwiftShader."""
-    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
-    driver_path = shutil.which("chromedriver")
-    if chromium is None or driver_path is None:
+    paths = chromium_paths()
+    if paths is None:
         pytest.skip(
             "chromium and chromium-driver are not installed: `make setup` installs them with "
             "apt-get when run as root (apt-get install chromium chromium-driver)"
         )
-    from selenium.webdriver.chrome.service import Service
-
-    options = webdriver.ChromeOptions()
-    options.binary_location = chromium
-    for argument in (
-        "--headless=new",
-        "--no-sandbox",
-        "--disable-dev-shm-usage",
-        "--window-size=1100,800",
-        "--use-angle=swiftshader",
-        "--enable-unsafe-swiftshader",
-        "--disable-gpu-sandbox",
-    ):
-        options.add_argument(argument)
-    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
-    driver = webdriver.Chrome(service=Service(executable_path=driver_path), options=options)
-    driver.set_page_load_timeout(60)
+    driver = start_chromium(paths, console_log=True)
     try:
         yield driver
     finally:
