@@ -37,11 +37,15 @@ from service.workers import worker_registry, worker_settings
 from trajectory import TransitionCost
 
 
-def timing_of(options: schemas.PlanOptionsIn) -> Timing:
-    """The planner's COM timing from a request's options (bounds checked by the schema)."""
+def timing_of(options: schemas.TimingOptionsIn) -> Timing:
+    """The planner's COM timing from a request's options (bounds checked by the schema); a
+    Twister step's transition point is its new state's COM, so only plans choose a cost."""
+    cost = TransitionCost("tired")
+    if isinstance(options, schemas.PlanOptionsIn):
+        cost = TransitionCost(options.transition_cost, strength=options.cost_strength)
     return Timing(
         speed=options.speed,
-        cost=TransitionCost(options.transition_cost, strength=options.cost_strength),
+        cost=cost,
         attractors=tuple(
             (a.transition, np.asarray(a.point, dtype=np.float64)) for a in options.attractors
         ),
@@ -199,7 +203,15 @@ def run_twister_step(request_json: str, seed: int) -> dict[str, Any]:
     )
     deadline = started + request.time_budget_s
     with clock.stage("step"):
-        result = twister_step(ctx, state, action, rng=rng, until=deadline, rate=request.rate)
+        result = twister_step(
+            ctx,
+            state,
+            action,
+            rng=rng,
+            until=deadline,
+            rate=request.rate,
+            timing=timing_of(request.options),
+        )
     failure = None
     if result.failure is not None:
         failure = schemas.FailureOut(
