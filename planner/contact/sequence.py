@@ -69,9 +69,15 @@ the reference posture, mean): 0.34 m for the 1 m humanoid legs, strides of about
 the quadrupeds and the hexapod in proportion to their legs."""
 ADVANCE_SHARE = 0.7
 """Body advance per gait cycle on open ground, as a share of the look-ahead."""
-OPEN_GROUND_GAIN = 1.5
-"""Open-ground strides are used only when they are at least this many times the rough ones
-(legs too short for that, the hexapod's, keep one gait everywhere)."""
+OPEN_GROUND_GAIN = 2.0
+"""Open-ground strides are used only when they are at least this many times the rough ones:
+the bipeds' (humanoid 2.3, Talos 2.4). Measured on the four-legged and six-legged walkers
+(HyQ 1.8, quadruped 1.5, hexapod 1.1): their flat-ground strides stay 0.35 m either way (the
+crawl is bounded by the kinematic COM polytopes, not the look-ahead), while longer advances
+made the HyQ slalom and the hexapod wall climb stop progressing."""
+OPEN_GROUND_MARGIN = 0.15
+"""m added to the legs' horizontal reach around the root: no scene surface vertex off the
+ground's height may lie that close to the path ahead for the ground to count as open."""
 ROUGH_LOOKAHEAD = 0.15  # m: look-ahead off open ground (stairs, rocks, walls, slopes)
 ROUGH_ADVANCE = 0.1  # m: body advance per gait cycle off open ground
 OPEN_GROUND_RISE = 0.03
@@ -171,6 +177,17 @@ def gait_lengths(
     if params.advance is not None:
         open_adv = rough_adv = params.advance
     return GaitLengths(open_look, open_adv, rough_look, rough_adv)
+
+
+def _surface_points(ctx: ContactContext) -> FloatArray:
+    """Every polygon vertex (n, 3) of the scene's surfaces (world frame, m; cached)."""
+
+    def make() -> FloatArray:
+        loops = [loop for surface in ctx.scene.surfaces for loop in surface.polygons]
+        return np.concatenate(loops).reshape(-1, 3) if loops else np.zeros((0, 3))
+
+    out: FloatArray = ctx.cached("surface_points", make)
+    return out
 
 
 def gait_order(offsets: dict[str, FloatArray], limbs: Sequence[str]) -> tuple[str, ...]:
@@ -346,17 +363,25 @@ def contact_sequence(
             out.update({c.limb: c.position for c in goal.contacts})
         return out
 
+    # m: horizontal reach of the legs around the root, plus a margin
+    reach_radius = max(float(np.linalg.norm(offsets[x][:2])) for x in legs) + OPEN_GROUND_MARGIN
+
     def open_ground() -> bool:
-        # level open ground ahead: the guide stays level over two long look-aheads and every
-        # leg finds a foothold right under its nominal position there, at the height of the
+        # level open ground ahead: the guide stays level over two long look-aheads, no scene
+        # surface off the ground's height lies within the legs' reach of it, and every leg
+        # finds a foothold right under its nominal position there, at the height of the
         # contacts held now (no step, rock, gap or obstacle pushing a foot aside)
         if gait.open_lookahead < OPEN_GROUND_GAIN * gait.rough_lookahead:
             return False
         heights = [float(c.position[2]) for c in current.contacts if c.limb in legs]
         if len(heights) != len(legs) or max(heights) - min(heights) > OPEN_GROUND_RISE:
             return False
-        for ahead in (s + gait.open_lookahead, s + 2.0 * gait.open_lookahead):
+        points = _surface_points(ctx)
+        for ahead in (s, s + gait.open_lookahead, s + 2.0 * gait.open_lookahead):
             pose = guide.at(min(ahead, guide.length))
+            near = np.linalg.norm(points[:, :2] - pose[:2, 3], axis=1) < reach_radius
+            if np.any(np.abs(points[near, 2] - heights[0]) > OPEN_GROUND_RISE):
+                return False  # a rock, a step, a wall or a hole within the legs' reach
             if abs(pose[2, 3] - guide.at(s)[2, 3]) > OPEN_GROUND_RISE:
                 return False
             for limb in legs:
