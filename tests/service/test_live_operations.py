@@ -51,8 +51,12 @@ def test_metrics_parse_and_count_a_request(
     assert _value(after, "gecko_worker_processes") == 1
     assert _value(after, "gecko_worker_tasks") == 0
     assert ("gecko_worker_pool_restarts_total", ()) in after
-    for state in ("queued", "running", "finished"):
-        assert ("gecko_roadmap_jobs", (("state", state),)) in after
+    for state in ("queued", "running", "done", "failed", "cancelled", "interrupted"):
+        assert ("gecko_jobs", (("kind", "roadmap"), ("state", state))) in after
+    for lane in ("interactive", "jobs", "uploads"):
+        assert _value(after, "gecko_queue_depth", lane=lane) == 0
+        assert _value(after, "gecko_lane_running", lane=lane) == 0
+    assert _value(after, "gecko_queue_limit", lane="interactive") == 16
     assert _value(after, "gecko_http_requests_in_progress") == 1  # the scrape itself
 
 
