@@ -82,7 +82,6 @@ class JobRunner:
         try:
             result = await work(context)
         except (asyncio.CancelledError, JobGone):
-            context.ticket.release()
             return  # a DELETE (the store says cancelled) or shutdown (release() says why)
         except ApiError as exc:
             await to_thread.run_sync(self.store.fail, job_id, f"{exc.code}: {exc.message}")
@@ -95,11 +94,14 @@ class JobRunner:
             context.ticket.release()
 
     async def cancel(self, job_id: str) -> Job | None:
-        """Cancel a job wherever it runs; this service worker stops its own at once."""
+        """Cancel a job wherever it runs. This service worker stops its own at once (its
+        process killed and its slot freed before this returns); another one within
+        ``JOB_POLL_S``."""
         job = await to_thread.run_sync(self.store.cancel, job_id)
         task = self._tasks.get(job_id)
         if task is not None and job is not None and job.state == "cancelled":
             task.cancel()
+            await asyncio.gather(task, return_exceptions=True)
         return job
 
     async def _poll(self) -> None:

@@ -7,22 +7,9 @@ import gzip
 from typing import Any
 
 import httpx
-from prometheus_client.parser import text_string_to_metric_families
 
-
-def _samples(url: str) -> dict[tuple[str, tuple[tuple[str, str], ...]], float]:
-    response = httpx.get(f"{url}/metrics", timeout=30)
-    assert response.status_code == 200
-    assert response.headers["content-type"].startswith("text/plain")
-    out = {}
-    for family in text_string_to_metric_families(response.text):
-        for sample in family.samples:
-            out[(sample.name, tuple(sorted(sample.labels.items())))] = sample.value
-    return out
-
-
-def _value(samples: dict[Any, float], name: str, **labels: str) -> float:
-    return samples.get((name, tuple(sorted(labels.items()))), 0.0)
+from tests.prometheus_text import metric_samples as _samples
+from tests.prometheus_text import sample_value as _value
 
 
 def test_metrics_parse_and_count_a_request(
