@@ -398,9 +398,12 @@ class RoadmapRequest(BaseModel):
     seed: Seed = 0
 
 
+JobStateName = Literal["queued", "running", "done", "failed", "cancelled", "interrupted"]
+
+
 class RoadmapStatus(BaseModel):
     id: str
-    status: Literal["queued", "running", "done", "failed", "interrupted"]
+    status: JobStateName
     progress: float = Field(ge=0, le=1)
     nodes: int = 0
     edges: int = 0
@@ -517,6 +520,7 @@ class PlanOptionsIn(TimingOptionsIn):
 class PlanRequest(BaseModel):
     model_config = ConfigDict(
         extra="forbid",
+        populate_by_name=True,
         json_schema_extra={
             "examples": [
                 {
@@ -538,6 +542,39 @@ class PlanRequest(BaseModel):
     options: PlanOptionsIn = Field(default_factory=PlanOptionsIn)
     seed: Seed | None = None
     time_budget_s: TimeBudget = 10.0
+    run_async: bool = Field(
+        default=False,
+        alias="async",
+        exclude=True,  # how the answer is delivered, not what it is: not in the result id
+        description="true: answer 202 at once with a job (Location: /v1/jobs/{id}) that runs "
+        "in the background lane; its budget counts from when it starts",
+    )
+
+
+class JobResult(BaseModel):
+    """What a finished job made: a stored plan, or a roadmap."""
+
+    kind: Literal["plan", "roadmap"]
+    id: str
+    url: str = Field(description="where to GET it")
+    status: PlanStatusName | None = Field(default=None, description="a plan's status")
+
+
+class JobStatus(BaseModel):
+    """A job (roadmap build or asynchronous plan), as any service worker reads it."""
+
+    id: str
+    kind: Literal["plan", "roadmap"]
+    status: JobStateName = Field(
+        description="queued, running, done, failed, cancelled (a DELETE) or interrupted "
+        "(the service stopped while it ran: submit it again)"
+    )
+    progress: float = Field(ge=0, le=1)
+    message: str = ""
+    result: JobResult | None = None
+    created_at: float = Field(description="Unix time, s")
+    started_at: float | None = Field(default=None, description="Unix time, s")
+    finished_at: float | None = Field(default=None, description="Unix time, s")
 
 
 class PlanResponse(BaseModel):
