@@ -112,11 +112,14 @@ def step_com(
     durations = step_durations(character, before, after, limb, timing.speed)
     c0 = com_position(character.model, before.q)
     c1 = com_position(character.model, after.q)
-    placed, attractors = user_transitions(
-        [contact_phase(character, before), contact_phase(character, after)],
-        [phase_kinematics(data, before), phase_kinematics(data, after)],
-        timing.attractors,
-    )
+    placed: list[FloatArray | None] | None = None
+    attractors: list[dict[str, object]] = []
+    if timing.attractors:  # the polytopes are only needed to check the user's points
+        placed, attractors = user_transitions(
+            [contact_phase(character, before), contact_phase(character, after)],
+            [phase_kinematics(data, before), phase_kinematics(data, after)],
+            timing.attractors,
+        )
     point = placed[0] if placed is not None and placed[0] is not None else c1
     curve, times = rest_to_rest(
         np.stack([c0, point, c1]),
