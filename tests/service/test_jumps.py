@@ -136,7 +136,7 @@ async def test_jumps_without_roadmap(client: httpx.AsyncClient) -> None:
     response = await client.post("/v1/jumps", json=request, timeout=120)
     assert response.status_code == 200, response.text
     body = response.json()
-    assert body["status"] in {"SOLVED", "INFEASIBLE", "TIMEOUT"}
+    assert body["status"] in {"SOLVED", "APPROXIMATE", "INFEASIBLE", "TIMEOUT"}
     for jump in body["jumps"]:
         _check_jump(jump)
 
