@@ -136,6 +136,12 @@ def keyframe_grid(t0: float, t1: float, rate: float) -> FloatArray:
     return np.asarray(t0 + (t1 - t0) * np.arange(count + 1) / count, dtype=np.float64)
 
 
+def _slerp(a: FloatArray, b: FloatArray, u: float) -> FloatArray:
+    """(3, 3) rotation a fraction ``u`` of the way from ``a`` (3, 3) to ``b`` (3, 3)."""
+    step = pin.log3(a.T @ b)
+    return np.asarray(a @ pin.exp3(u * step), dtype=np.float64)
+
+
 class _Targets:
     """Per-time targets of a spec: the phase, its stance, the COM and the swing pose; the
     swing arc of a phase may be raised (``lifts``, per phase index)."""
@@ -178,18 +184,58 @@ class _Targets:
             )
         return self._arcs[key]
 
+    def com(self, t: float) -> FloatArray:
+        """(3,) m, the COM curve at ``t`` (clamped to its span)."""
+        curve = self.spec.com
+        return np.asarray(curve(np.array([min(max(t, curve.t0), curve.t1)]))[0], dtype=np.float64)
+
+    def carried(self, phase: MotionPhase, t: float) -> tuple[tuple[str, FloatArray], ...]:
+        """(limb, pose (4, 4)) of the limbs a flight ``phase`` carries at ``t``: the COM
+        plus an offset blended from the start offset to the end offset (smoothstep), pulled
+        toward the limb's tuck offset by ``FLIGHT_TUCK`` sin^2(pi s) (s the flight fraction);
+        the orientation slerped from start to end."""
+        if not phase.flight:
+            return ()
+        span = phase.t1 - phase.t0
+        s = 1.0 if span <= 0.0 else min(1.0, max(0.0, (t - phase.t0) / span))
+        blend = s * s * (3.0 - 2.0 * s)
+        tuck = tuning.FLIGHT_TUCK * math.sin(math.pi * s) ** 2
+        c0, c1, c = self.com(phase.t0), self.com(phase.t1), self.com(t)
+        out = []
+        for limb in phase.flight:
+            lerp = (1.0 - blend) * (limb.start[:3, 3] - c0) + blend * (limb.end[:3, 3] - c1)
+            pose = np.eye(4)
+            pose[:3, 3] = c + lerp + tuck * (np.asarray(limb.tuck) - lerp)
+            pose[:3, :3] = _slerp(limb.start[:3, :3], limb.end[:3, :3], blend)
+            out.append((limb.limb, pose))
+        return tuple(out)
+
     def at(self, t: float) -> StepTargets:
         k = self.phase_index(t)
         phase: MotionPhase = self.spec.phases[k]
-        curve = self.spec.com
-        com = np.asarray(curve(np.array([min(max(t, curve.t0), curve.t1)]))[0], dtype=np.float64)
+        com = self.com(t)
         arc = self.arc(k)
         swing = None
         if arc is not None and phase.swing is not None:
             swing = (phase.swing.limb, np.asarray(arc(t), dtype=np.float64))
         stance = tuple((c.limb, np.asarray(c.placement)) for c in phase.stance)
+        if phase.flight is None and not phase.fast_com:
+            return StepTargets(
+                stance, com, swing, phase.posture, k not in self.unguarded, phase.level_trunk
+            )
+        # a fast COM: its target unsaturated, the trunk height aimed with it
+        posture = np.array(phase.posture, dtype=np.float64)
+        posture[:3] += com - self.com(phase.t0)
         return StepTargets(
-            stance, com, swing, phase.posture, k not in self.unguarded, phase.level_trunk
+            stance,
+            com,
+            swing,
+            posture,
+            k not in self.unguarded,
+            phase.level_trunk,
+            carried=self.carried(phase, t),
+            exact_com=phase.flight is not None,
+            com_reach=math.inf,
         )
 
 

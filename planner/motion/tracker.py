@@ -45,6 +45,11 @@ class StepTargets:
     resort lets a swing that cannot land otherwise through: the checker still counts it).
     level_trunk : the trunk aims at the posture's yaw only (and its pitch for a character
     whose trunk may pitch); otherwise at the posture's own roll and pitch.
+    carried : (limb, pose (4, 4)) effectors carried through a flight (swing cost, guarded
+    like a swing). exact_com : a flight: the whole body is translated so that its COM is
+    exactly ``com`` before and after the QP (the QP then only shapes the body).
+    com_reach : m, the COM target is pulled in to this distance from the COM
+    (``COM_MAX_ERROR``; unbounded for a fast COM).
     """
 
     stance: tuple[tuple[str, FloatArray], ...]
@@ -53,6 +58,9 @@ class StepTargets:
     posture: FloatArray
     swing_guarded: bool = True
     level_trunk: bool = True
+    carried: tuple[tuple[str, FloatArray], ...] = ()
+    exact_com: bool = False
+    com_reach: float = tuning.COM_MAX_ERROR
 
 
 def effector_geometries(character: Character) -> dict[str, frozenset[int]]:
@@ -143,7 +151,7 @@ class WholeBodyTracker:
         ]
         self.configuration = Configuration(model, self.data, pin.neutral(model), copy_data=False)
         self.fallbacks = 0
-        self._lift_off: tuple[str, dict[int, float]] | None = None
+        self._lift_off: dict[str, dict[int, float]] = {}
         self._trunk_cache: dict[bytes, FloatArray] = {}
         root_nq = 7 if model.joints[1].nq == 7 else 0
         self._bounded = np.arange(root_nq, model.nq)
@@ -176,26 +184,41 @@ class WholeBodyTracker:
         """Forget what earlier steps left (remembered witnesses, the lift-off depths): the
         next step starts a fresh track."""
         self.scene.memory.clear()
-        self._lift_off = None
+        self._lift_off = {}
 
-    def _swing_security(self, limb: str) -> dict[int, float]:
-        """Security distance (m) of each shape of the swinging ``limb``'s effector: never
-        deeper than where it lifted off (a real robot's foot capsule may hang under the sole
-        by design), nor than ``SWING_SECURITY_DISTANCE``; measured when the swing starts."""
-        if self._lift_off is None or self._lift_off[0] != limb:
-            depths = self.scene.depths(self.configuration.data, self.effectors[limb])
-            security = {
-                i: min(tuning.SWING_SECURITY_DISTANCE, d - tuning.SWING_SECURITY_MARGIN)
-                for i, d in depths.items()
-            }
-            self._lift_off = (limb, security)
-        return self._lift_off[1]
+    def _swing_security(self, limbs: Sequence[str]) -> dict[int, float]:
+        """Security distance (m) of each shape of the swinging (or carried) ``limbs``'
+        effectors: never deeper than where it lifted off (a real robot's foot capsule may
+        hang under the sole by design), nor than ``SWING_SECURITY_DISTANCE``; measured when
+        the limb starts moving, forgotten when it stops."""
+        for limb in [k for k in self._lift_off if k not in limbs]:
+            del self._lift_off[limb]
+        security: dict[int, float] = {}
+        for limb in limbs:
+            if limb not in self._lift_off:
+                depths = self.scene.depths(self.configuration.data, self.effectors[limb])
+                self._lift_off[limb] = {
+                    i: min(tuning.SWING_SECURITY_DISTANCE, d - tuning.SWING_SECURITY_MARGIN)
+                    for i, d in depths.items()
+                }
+            security.update(self._lift_off[limb])
+        return security
+
+    def _onto_com(self, q: FloatArray, com: FloatArray) -> FloatArray:
+        """``q`` (nq,) translated so that its COM is ``com`` (3,) m (a floating base moves
+        every body by its own translation)."""
+        here = pin.centerOfMass(self.model, self.data, q, False)
+        out = np.array(q, dtype=np.float64)
+        out[:3] += np.asarray(com, dtype=np.float64) - here
+        return out
 
     def step(self, q: FloatArray, targets: StepTargets, dt: float) -> FloatArray:
         """The configuration (nq,) one control step of ``dt`` s after ``q`` (nq,)."""
         config = self.configuration
         q = np.array(q, dtype=np.float64)
         q[self._bounded] = np.clip(q[self._bounded], self._lower, self._upper)
+        if targets.exact_com:
+            q = self._onto_com(q, targets.com)
         config.update(q)
         tasks: list[Any] = []
         skipped: set[int] = set()
@@ -204,22 +227,23 @@ class WholeBodyTracker:
             task.set_target(pin.SE3(pose[:3, :3].copy(), pose[:3, 3].copy()))
             tasks.append(task)
             skipped |= self.effectors[limb]
-        light: dict[int, float] = {}
-        if targets.swing is not None:
-            limb, pose = targets.swing
+        moving = [] if targets.swing is None else [targets.swing]
+        moving += list(targets.carried)
+        for limb, pose in moving:
             task = self.swing_tasks[limb]
             here = self.data.oMf[self.character.limb(limb).frame_id].translation
             goal = _saturated(here, pose[:3, 3], tuning.SWING_MAX_ERROR)
             task.set_target(pin.SE3(pose[:3, :3].copy(), goal))
             tasks.append(task)
+        guarded = [limb for limb, _ in targets.carried]
+        if targets.swing is not None:
             if targets.swing_guarded:
-                light = self._swing_security(limb)
+                guarded.insert(0, targets.swing[0])
             else:
-                skipped |= self.effectors[limb]
-        else:
-            self._lift_off = None
+                skipped |= self.effectors[targets.swing[0]]
+        light = self._swing_security(guarded)
         com = pin.centerOfMass(self.model, self.data, q, False)
-        goal = _saturated(com, np.asarray(targets.com, dtype=np.float64), tuning.COM_MAX_ERROR)
+        goal = _saturated(com, np.asarray(targets.com, dtype=np.float64), targets.com_reach)
         self.com_task.set_target(goal)
         tasks.append(self.com_task)
         posture = np.asarray(targets.posture, dtype=np.float64)
@@ -252,5 +276,6 @@ class WholeBodyTracker:
             except NoSolutionFound:
                 self.fallbacks += 1
                 continue
-            return np.asarray(pin.integrate(self.model, q, velocity * dt), dtype=np.float64)
+            q = np.asarray(pin.integrate(self.model, q, velocity * dt), dtype=np.float64)
+            return self._onto_com(q, targets.com) if targets.exact_com else q
         return np.array(q, dtype=np.float64)
