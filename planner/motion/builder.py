@@ -223,7 +223,8 @@ class _Targets:
             return StepTargets(
                 stance, com, swing, phase.posture, k not in self.unguarded, phase.level_trunk
             )
-        # a fast COM: its target unsaturated, the trunk height aimed with it
+        # a fast COM: its target unsaturated, the trunk height aimed with it, the stance
+        # contacts held as constraints (the COM lags rather than drag them)
         posture = np.array(phase.posture, dtype=np.float64)
         posture[:3] += com - self.com(phase.t0)
         return StepTargets(
@@ -236,6 +237,7 @@ class _Targets:
             carried=self.carried(phase, t),
             exact_com=phase.flight is not None,
             com_reach=math.inf,
+            rigid_stance=True,
         )
 
 
@@ -284,8 +286,11 @@ def _track_segment(
             if until():
                 out.cut_short = True
                 break
-            dt = (t - previous) / tuning.SUBSTEPS
-            for s in range(1, tuning.SUBSTEPS + 1):
+            running = spec.phases[targets.phase_index(t)]
+            fast = running.fast_com
+            substeps = tuning.FAST_SUBSTEPS if fast else tuning.SUBSTEPS
+            dt = (t - previous) / substeps
+            for s in range(1, substeps + 1):
                 q = tracker.step(q, targets.at(previous + s * dt), dt)
         previous = t
         phase = spec.phases[targets.phase_index(t)]

@@ -63,8 +63,10 @@ class MotionPhase:
     carries (possibly none): the COM follows its curve exactly (the whole body translated
     onto it each control step), each carried limb along its ``FlightLimb`` path.
     fast_com : the COM moves fast (a jump's takeoff push or landing): its target is not
-    saturated at ``COM_MAX_ERROR`` and the trunk height target moves with it (``posture``'s
-    root position is then where the root is aimed at ``t0``). A flight implies it.
+    saturated at ``COM_MAX_ERROR``, the trunk height target moves with it (``posture``'s
+    root position is then where the root is aimed at ``t0``) and the stance contacts are
+    hard constraints of the tracker's QP (the COM lags rather than drag them). A flight
+    implies it.
     """
 
     t0: float

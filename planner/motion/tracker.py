@@ -8,9 +8,13 @@ Each step solves, over the configuration step ``dq`` (tangent space),
 
 with the tasks, by cost: stance contacts held (dominant), the COM on its curve, the swing
 effector on its arc, the trunk's roll and pitch at the planned orientation, and a posture
-pull toward the phase's planned configuration. The QP backend is daqp through qpsolvers.
-When the QP has no solution (a damper that cannot be met within the speed limits), the
-step is retried without the dampers, then skipped (the body holds still).
+pull toward the phase's planned configuration. With ``StepTargets.rigid_stance`` (a jump's
+stance phases, where the COM moves fast) the stance contacts are equality constraints
+instead, ``J_c dq = -e_c`` (position for a point contact, full placement for a patch): the
+COM then lags its curve rather than drag a contact. The QP backend is daqp through
+qpsolvers. When the QP has no solution (a damper that cannot be met within the speed
+limits), the step is retried without the dampers, then (rigid stance) with the contacts
+back in the cost, then skipped (the body holds still).
 """
 
 from __future__ import annotations
@@ -21,9 +25,9 @@ from typing import Any
 
 import numpy as np
 import pinocchio as pin
+import qpsolvers
 from numpy.typing import NDArray
-from pink import Configuration, solve_ik
-from pink.exceptions import NoSolutionFound
+from pink import Configuration, build_ik
 from pink.limits import ConfigurationLimit, VelocityLimit
 from pink.tasks import ComTask, FrameTask, PostureTask
 from scipy.spatial.transform import Rotation
@@ -49,7 +53,8 @@ class StepTargets:
     like a swing). exact_com : a flight: the whole body is translated so that its COM is
     exactly ``com`` before and after the QP (the QP then only shapes the body).
     com_reach : m, the COM target is pulled in to this distance from the COM
-    (``COM_MAX_ERROR``; unbounded for a fast COM).
+    (``COM_MAX_ERROR``; unbounded for a fast COM). rigid_stance : the stance contacts are
+    equality constraints of the QP, not costs.
     """
 
     stance: tuple[tuple[str, FloatArray], ...]
@@ -61,6 +66,7 @@ class StepTargets:
     carried: tuple[tuple[str, FloatArray], ...] = ()
     exact_com: bool = False
     com_reach: float = tuning.COM_MAX_ERROR
+    rigid_stance: bool = False
 
 
 def effector_geometries(character: Character) -> dict[str, frozenset[int]]:
@@ -259,23 +265,44 @@ class WholeBodyTracker:
         self.posture_task.set_target(goal)
         tasks.append(self.posture_task)
         self.scene.set_phase(frozenset(skipped), light)
-        for limits in (
-            [*self.limits, self.scene, self.self_clearance],
-            self.limits,
-        ):
-            try:
-                velocity = solve_ik(
-                    config,
-                    tasks,
-                    dt,
-                    solver=tuning.QP_SOLVER,
-                    damping=tuning.DAMPING,
-                    limits=limits,
-                    safety_break=False,
-                )
-            except NoSolutionFound:
+        rigid = [limb for limb, _ in targets.stance] if targets.rigid_stance else []
+        attempts: list[tuple[list[Any], bool]] = [
+            ([*self.limits, self.scene, self.self_clearance], True),
+            (self.limits, True),
+        ]
+        if rigid:
+            attempts += [
+                ([*self.limits, self.scene, self.self_clearance], False),
+                (self.limits, False),
+            ]
+        for limits, hard in attempts:
+            velocity = self._solve(tasks, dt, limits, rigid if hard else [])
+            if velocity is None:
                 self.fallbacks += 1
                 continue
             q = np.asarray(pin.integrate(self.model, q, velocity * dt), dtype=np.float64)
             return self._onto_com(q, targets.com) if targets.exact_com else q
         return np.array(q, dtype=np.float64)
+
+    def _solve(
+        self, tasks: Sequence[Any], dt: float, limits: Sequence[Any], rigid: Sequence[str]
+    ) -> FloatArray | None:
+        """The QP's velocity (nv,) rad/s or m/s, or None when it has no solution. ``rigid``
+        limbs' stance tasks (targets already set) are also equality constraints: the
+        effector's error is corrected in this step, exactly (position rows only for a
+        point contact)."""
+        config = self.configuration
+        problem = build_ik(config, tasks, dt, damping=tuning.DAMPING, limits=limits)
+        if rigid:
+            rows, values = [], []
+            for limb in rigid:
+                task = self.stance_tasks[limb]
+                keep = slice(0, 6) if self.character.limb(limb).contact == "patch" else slice(0, 3)
+                rows.append(task.compute_jacobian(config)[keep])
+                values.append(-task.gain * task.compute_error(config)[keep])
+            problem.A = np.vstack(rows)
+            problem.b = np.concatenate(values)
+        result = qpsolvers.solve_problem(problem, solver=tuning.QP_SOLVER)
+        if not result.found or result.x is None:
+            return None
+        return np.asarray(result.x, dtype=np.float64) / dt

@@ -11,6 +11,11 @@ from __future__ import annotations
 SUBSTEPS = 2
 """Control steps per keyframe period: at 30 keyframes per second the QP runs at 60 Hz."""
 
+FAST_SUBSTEPS = 6
+"""Control steps per keyframe period in a phase whose COM moves fast (a jump's stances and
+flights: 180 Hz at 30 keyframes per second): a step's joint motion is small enough that the
+linearised contact constraints hold the stance within a millimetre."""
+
 MAX_JOINT_SPEED = 10.0
 """rad/s, cap on every joint's speed on top of the URDF's own velocity limit."""
 
