@@ -11,7 +11,9 @@ velocity to rest. A last shift stands the body up on the last landing's contacts
 velocity is continuous everywhere; its acceleration is ``JUMP_ACCELERATION`` (more when the
 legs' reach demands a shorter push) and the contact force it needs, m (c'' - g), is checked
 against the node's centroidal cone (the push or landing is lengthened or shortened until it passes,
-or the timing says it does not).
+or the timing says it does not). Every stance phase of a jump holds its contacts rigidly (equality
+constraints of the tracker's QP, finer control steps): the tracked COM lags its curve where the
+joint speed limits cannot follow it, the feet never slide.
 """
 
 from __future__ import annotations
@@ -241,14 +243,30 @@ def jump_spec(
         segments.append(shift)
         posture = _aimed(np.asarray(before.q), before.q, here, coms[i])
         phases.append(
-            MotionPhase(t, shift.t1, before.contacts, posture, level_trunk=False, fast_com=True)
+            MotionPhase(
+                t,
+                shift.t1,
+                before.contacts,
+                posture,
+                level_trunk=False,
+                fast_com=True,
+                rigid_stance=True,
+            )
         )
         t_crouch, t = t, shift.t1
         # the push: from rest to v0 at constant acceleration
         segments.append(_quadratic(crouch, crouch, leg.com0, t, t + push_s))
         posture = _aimed(np.asarray(before.q), before.q, crouch, coms[i])
         phases.append(
-            MotionPhase(t, t + push_s, before.contacts, posture, level_trunk=False, fast_com=True)
+            MotionPhase(
+                t,
+                t + push_s,
+                before.contacts,
+                posture,
+                level_trunk=False,
+                fast_com=True,
+                rigid_stance=True,
+            )
         )
         t_push, t = t, t + push_s
         # the flight: the parabola itself
@@ -272,7 +290,15 @@ def jump_spec(
         segments.append(_quadratic(com1, rest, rest, t, t + land_s))
         posture = _aimed(np.asarray(after.q), after.q, com1, coms[i + 1])
         phases.append(
-            MotionPhase(t, t + land_s, after.contacts, posture, level_trunk=False, fast_com=True)
+            MotionPhase(
+                t,
+                t + land_s,
+                after.contacts,
+                posture,
+                level_trunk=False,
+                fast_com=True,
+                rigid_stance=True,
+            )
         )
         t_touchdown, t = t, t + land_s
         timings.append(
@@ -296,7 +322,9 @@ def jump_spec(
     segments.append(shift)
     posture = _aimed(np.asarray(last.q), last.q, here, coms[-1])
     phases.append(
-        MotionPhase(t, shift.t1, last.contacts, posture, level_trunk=False, fast_com=True)
+        MotionPhase(
+            t, shift.t1, last.contacts, posture, level_trunk=False, fast_com=True, rigid_stance=True
+        )
     )
     curve = trajectory.PiecewiseBezier(tuple(segments))
     spec = MotionSpec(np.asarray(stances[0].q, dtype=np.float64), tuple(phases), curve, rate)

@@ -63,10 +63,10 @@ class MotionPhase:
     carries (possibly none): the COM follows its curve exactly (the whole body translated
     onto it each control step), each carried limb along its ``FlightLimb`` path.
     fast_com : the COM moves fast (a jump's takeoff push or landing): its target is not
-    saturated at ``COM_MAX_ERROR``, the trunk height target moves with it (``posture``'s
-    root position is then where the root is aimed at ``t0``) and the stance contacts are
-    hard constraints of the tracker's QP (the COM lags rather than drag them). A flight
-    implies it.
+    saturated at ``COM_MAX_ERROR`` and the trunk height target moves with it (``posture``'s
+    root position is then where the root is aimed at ``t0``). A flight implies it.
+    rigid_stance : the stance contacts are equality constraints of the tracker's QP, not
+    dominant costs (a takeoff push or a landing: the COM lags rather than drag them).
     """
 
     t0: float
@@ -77,6 +77,7 @@ class MotionPhase:
     level_trunk: bool = True
     flight: tuple[FlightLimb, ...] | None = None
     fast_com: bool = False
+    rigid_stance: bool = False
 
     def __post_init__(self) -> None:
         if self.flight is not None and (self.stance or self.swing is not None):

@@ -218,8 +218,13 @@ class WholeBodyTracker:
         out[:3] += np.asarray(com, dtype=np.float64) - here
         return out
 
-    def step(self, q: FloatArray, targets: StepTargets, dt: float) -> FloatArray:
-        """The configuration (nq,) one control step of ``dt`` s after ``q`` (nq,)."""
+    def step(
+        self, q: FloatArray, targets: StepTargets, dt: float, share: float = 1.0
+    ) -> FloatArray:
+        """The configuration (nq,) one control step of ``dt`` s after ``q`` (nq,).
+        ``share`` : this step is that fraction of a nominal control step (finer steps, as
+        ``FAST_SUBSTEPS``): the gentle trunk and posture pulls, which are fractions per step,
+        are scaled so that they converge as fast per second as with nominal steps."""
         config = self.configuration
         q = np.array(q, dtype=np.float64)
         q[self._bounded] = np.clip(q[self._bounded], self._lower, self._upper)
@@ -255,10 +260,12 @@ class WholeBodyTracker:
         posture = np.asarray(targets.posture, dtype=np.float64)
         trunk = self.trunk_rotation(posture, targets.level_trunk)
         self.trunk_task.set_target(pin.SE3(trunk, posture[:3].copy()))
+        self.trunk_task.gain = 1.0 - (1.0 - tuning.TRUNK_GAIN) ** share
+        self.posture_task.gain = 1.0 - (1.0 - tuning.POSTURE_GAIN) ** share
         tasks.append(self.trunk_task)
         # each joint pulled at most POSTURE_MAX_ERROR toward its posture per step: summed
         # over thirty joints, a far posture would otherwise outweigh the stance contacts
-        reach = tuning.POSTURE_MAX_ERROR
+        reach = tuning.POSTURE_MAX_ERROR * share
         joints = slice(self._bounded[0], None)
         goal = q.copy()
         goal[joints] = q[joints] + np.clip(posture[joints] - q[joints], -reach, reach)

@@ -206,6 +206,16 @@ FLIGHT_TUCK = 0.4
 """Share of the way mid-flight a carried limb is pulled from its straight path (start offset
 to end offset, relative to the COM) toward its natural-posture offset: the legs tuck."""
 
+FLIGHT_TUCKS = ((0.7, 0.1), (0.95, 0.25))
+"""(share, extra lift m) of the tuck tried in turn, after ``FLIGHT_TUCK`` and no extra lift,
+for a flight whose keyframes collide (a leg trailing into a platform's edge): the carried
+limbs pulled further toward their tuck offset, raised this much more (world z)."""
+
+FLIGHT_SETTLE_SHARE = 0.15
+"""Share of a flight, at its end, in which the carried limbs hold their landing offsets from
+the COM (the legs reach their touchdown posture before the contacts are made, as a swing
+settles before its phase ends)."""
+
 FLIGHT_TUCK_LIFT = 0.15
 """m: the natural-posture offset a carried limb tucks toward is raised this much (world z),
 so that the feet draw up under the body mid-flight instead of hanging straight."""
