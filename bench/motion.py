@@ -13,6 +13,13 @@ keyframe pairs with a joint over 10 rad/s or its URDF limit (and the fastest), r
 > 5 cm per 30 Hz step per run, keyframe COM vs COM curve (p99, mm), root tilt (max, deg),
 phases animated, pace (m/s), frames with a still COM (< 1 cm/s), seconds of computation per
 second of animation (median), seconds of auditing per run (median).
+
+After the plans, a pace table (issue 13) per plan scenario: average progress (m/s, start to
+end COM over the animation), median stride (m, a contact's move between two consecutive
+contacts of its limb), frames with a still COM, dynamic validity (Eq. 1: mean fraction of
+valid samples per phase, and the share of phases valid throughout) beside 2PAC's Table 3
+where the paper has the kind of scene, contact changes per plan (median), and seconds of
+computation per contact change (whole pipeline, median).
 """
 
 from __future__ import annotations
@@ -80,6 +87,10 @@ class Tally:
     cost: list[float] = field(default_factory=list)
     audit_s: list[float] = field(default_factory=list)
     notes: set[str] = field(default_factory=set)
+    strides: list[float] = field(default_factory=list)
+    changes: list[int] = field(default_factory=list)
+    per_change: list[float] = field(default_factory=list)
+    validity: list[float] = field(default_factory=list)
 
     def add(self, audit: MotionAudit) -> None:
         self.frames += audit.frames
@@ -141,6 +152,47 @@ HEADER = (
 )
 
 
+# 2PAC Table 3: share of dynamically valid samples per kind of scene (paper, section 8)
+PAPER_VALIDITY = {"stair": "97 %", "climbing": "56 %", "slope": "85 %", "chair": "100 %"}
+PACE_HEADER = (
+    f"{'scenario':32s} {'pace':>6s} {'stride':>6s} {'still':>6s} {'valid':>6s} "
+    f"{'whole':>6s} {'paper':>6s} {'chg':>5s} {'s/chg':>6s}"
+)
+
+
+def _strides(states: Any) -> list[float]:
+    """Per limb, how far (m) each contact moved from the same limb's previous contact."""
+    last: dict[str, Any] = {}
+    out = []
+    for state in states:
+        for contact in state.contacts:
+            previous = last.get(contact.limb)
+            moved = 0.0 if previous is None else float(np.linalg.norm(contact.position - previous))
+            if moved > 1e-6:
+                out.append(moved)
+            last[contact.limb] = contact.position
+    return out
+
+
+def _pace_row(name: str, tally: Tally) -> str:
+    def med(values: list[Any], fmt: str) -> str:
+        return format(statistics.median(values), fmt) if values else "-"
+
+    still = f"{tally.still / tally.frames:6.1%}" if tally.frames else "-"
+    valid = f"{statistics.mean(tally.validity):6.1%}" if tally.validity else "-"
+    whole = (
+        f"{sum(v >= 1.0 for v in tally.validity) / len(tally.validity):6.1%}"
+        if tally.validity
+        else "-"
+    )
+    paper = next((v for k, v in PAPER_VALIDITY.items() if k in name), "-")
+    return (
+        f"{name:32s} {med(tally.pace, '.3f'):>6s} {med(tally.strides, '.2f'):>6s} {still:>6s} "
+        f"{valid:>6s} {whole:>6s} {paper:>6s} {med(tally.changes, 'd'):>5s} "
+        f"{med(tally.per_change, '.3f'):>6s}"
+    )
+
+
 def _duration(keyframes: Any) -> float:
     return float(keyframes[-1].t - keyframes[0].t) if len(keyframes) >= 2 else 0.0
 
@@ -152,7 +204,9 @@ def _audit(tally: Tally, *args: Any, **kwargs: Any) -> None:
     tally.add(audit)
 
 
-def bench_plans(files: Iterable[Path], seeds: int) -> None:
+def bench_plans(files: Iterable[Path], seeds: int) -> list[tuple[str, Tally]]:
+    """Audit every plan scenario over ``seeds`` seeds; the tallies for the pace table."""
+    tallies = []
     for file in files:
         spec = json.loads(file.read_text())
         scene = scenario_scene(spec)
@@ -180,8 +234,14 @@ def bench_plans(files: Iterable[Path], seeds: int) -> None:
             tally.solved += result.status.value == "SOLVED"
             plan = result.value
             motion = None if plan is None else plan.motion
+            if plan is not None and len(plan.states) > 1:
+                tally.changes.append(len(plan.states) - 1)
+                tally.per_change.append(seconds / (len(plan.states) - 1))
+                tally.strides.extend(_strides(plan.states))
             if motion is None or not motion.keyframes:
                 continue
+            report = motion.report.get("dynamic_validity", [])
+            tally.validity.extend(float(r["fraction_valid"]) for r in report)
             duration = _duration(motion.keyframes)
             if duration > 0:
                 tally.cost.append(seconds / duration)
@@ -189,6 +249,8 @@ def bench_plans(files: Iterable[Path], seeds: int) -> None:
         print(f"{tally.row(file.stem)}  [{time.perf_counter() - wall:.0f} s]", flush=True)
         for note in sorted(tally.notes):
             print(f"{'':32s} note: {note}")
+        tallies.append((file.stem, tally))
+    return tallies
 
 
 def bench_twister(seeds: int) -> None:
@@ -373,7 +435,14 @@ def main() -> None:
         files = [f for f in files if f.stem in args.scenario]
     print(TARGETS)
     print(HEADER, flush=True)
-    bench_plans(files, args.seeds)
+    tallies = bench_plans(files, args.seeds)
+    print(
+        "\npace (issue 13 targets: humanoid flat >= 0.5 m/s with validity >= 97 %, stairs >= "
+        "0.25 m/s, quadruped flat >= 0.5 m/s; <= 0.05 s per contact change)"
+    )
+    print(PACE_HEADER)
+    for name, tally in tallies:
+        print(_pace_row(name, tally), flush=True)
     if args.twister:
         bench_twister(args.seeds)
     if args.jumps:

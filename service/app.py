@@ -13,11 +13,15 @@ from starlette.middleware.gzip import GZipMiddleware
 from service import __version__, openapi
 from service.errors import install_error_handlers
 from service.files import remove_leftovers
+from service.job_runner import JobRunner
+from service.jobs import SqliteJobStore
+from service.lanes import Lanes
 from service.metrics import Metrics
 from service.results import ResultStore, code_version
 from service.routes import (
     characters,
     health,
+    jobs,
     jumps,
     metrics,
     plans,
@@ -28,7 +32,7 @@ from service.routes import (
 )
 from service.settings import Settings, get_settings
 from service.telemetry import REQUEST_ID_HEADER, Telemetry, configure_logging
-from service.workers import WorkerPool, registry_for
+from service.workers import registry_for
 
 log = logging.getLogger("gecko")
 
@@ -47,8 +51,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         registry.preload()
         app.state.registry = registry
         settings.roadmaps_path.mkdir(parents=True, exist_ok=True)
-        app.state.pool = WorkerPool(settings, app_metrics)
-        app.state.roadmap_jobs = {}
+        lanes = Lanes(settings, app_metrics)
+        app.state.lanes = lanes
+        job_store = SqliteJobStore(settings.jobs_db_path)
+        app_metrics.watch_jobs(job_store.counts)
+        app.state.jobs = JobRunner(job_store, lanes.jobs)
+        await app.state.jobs.open()
         log.info("code version %s", code_version())  # hashed once, before any request
         app.state.results = ResultStore(
             settings.results_path,
@@ -59,7 +67,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         try:
             yield
         finally:
-            app.state.pool.shutdown()
+            await app.state.jobs.close()
+            lanes.shutdown()
 
     app = FastAPI(
         title="Gecko",
@@ -71,8 +80,6 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     app.state.settings = settings
     app.state.metrics = app_metrics
-    app.state.roadmap_jobs = {}
-    app_metrics.watch_roadmap_jobs(lambda: app.state.roadmap_jobs)
     install_error_handlers(app)
     app.include_router(health.router)
     app.include_router(metrics.router)
@@ -81,6 +88,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(plans.router)
     app.include_router(twister.router)
     app.include_router(jumps.router)
+    app.include_router(jobs.router)
     app.include_router(results.router)
     viewer.install(app)
     openapi.install(app)

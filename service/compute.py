@@ -7,9 +7,6 @@ Errors the client can fix are raised as :class:`~service.errors.ApiError` (pickl
 
 from __future__ import annotations
 
-import json
-import os
-import tempfile
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -32,16 +29,24 @@ from planner.scene import Scene
 from planner.termination import Deadline
 from service import convert, schemas
 from service.errors import ApiError, not_found
+from service.jobs import SqliteJobStore
 from service.registry import CharacterEntry, Registry
 from service.workers import worker_registry, worker_settings
 from trajectory import TransitionCost
 
+MIN_BUDGET_S = 0.01  # s: a request that waited out its budget still gets a (quick) answer
+PROGRESS_STEP = 0.02  # fraction of a roadmap build between two progress writes
 
-def timing_of(options: schemas.PlanOptionsIn) -> Timing:
-    """The planner's COM timing from a request's options (bounds checked by the schema)."""
+
+def timing_of(options: schemas.TimingOptionsIn) -> Timing:
+    """The planner's COM timing from a request's options (bounds checked by the schema); a
+    Twister step's transition point is its new state's COM, so only plans choose a cost."""
+    cost = TransitionCost("tired")
+    if isinstance(options, schemas.PlanOptionsIn):
+        cost = TransitionCost(options.transition_cost, strength=options.cost_strength)
     return Timing(
         speed=options.speed,
-        cost=TransitionCost(options.transition_cost, strength=options.cost_strength),
+        cost=cost,
         attractors=tuple(
             (a.transition, np.asarray(a.point, dtype=np.float64)) for a in options.attractors
         ),
@@ -93,8 +98,17 @@ def _endpoint(endpoint: schemas.EndpointIn) -> Endpoint:
     return Endpoint(root_pose=pose_matrix(np.asarray(endpoint.position), rotation))
 
 
-def run_plan(request_json: str, seed: int) -> dict[str, Any]:
-    """``POST /v1/plans`` in a worker: the response as a JSON-ready dict."""
+def budget_left(deadline: float | None, budget_s: float) -> float:
+    """Seconds of planning left: until ``deadline`` (a :func:`time.monotonic` time, shared by
+    the processes of a machine: the request's arrival plus its budget), else ``budget_s``."""
+    if deadline is None:
+        return budget_s
+    return max(MIN_BUDGET_S, deadline - time.monotonic())
+
+
+def run_plan(request_json: str, seed: int, deadline: float | None = None) -> dict[str, Any]:
+    """``POST /v1/plans`` in a worker: the response as a JSON-ready dict; the search stops
+    at ``deadline`` (monotonic s; None: the request's budget from now)."""
     request = schemas.PlanRequest.model_validate_json(request_json)
     entry = character_entry(request.character)
     scene = scene_by_id(request.scene)
@@ -119,7 +133,7 @@ def run_plan(request_json: str, seed: int) -> dict[str, Any]:
         _endpoint(request.start),
         _endpoint(request.goal),
         rng=np.random.default_rng(seed),
-        time_budget_s=request.time_budget_s,
+        time_budget_s=budget_left(deadline, request.time_budget_s),
         options=options,
     )
     plan = result.value
@@ -142,10 +156,12 @@ def run_plan(request_json: str, seed: int) -> dict[str, Any]:
     return response.model_dump(mode="json")
 
 
-def run_twister_step(request_json: str, seed: int) -> dict[str, Any]:
-    """``POST /v1/twister/step`` in a worker: one contact change, as a JSON-ready dict."""
+def run_twister_step(request_json: str, seed: int, deadline: float | None = None) -> dict[str, Any]:
+    """``POST /v1/twister/step`` in a worker: one contact change, as a JSON-ready dict;
+    ``auto`` stops trying limbs at ``deadline`` (monotonic s; None: the budget from now)."""
     request = schemas.TwisterStepRequest.model_validate_json(request_json)
     started = time.perf_counter()
+    budget_s = budget_left(deadline, request.time_budget_s)
     entry = character_entry(request.character)
     scene = scene_by_id(request.scene)
     character, data = entry.character, entry.data
@@ -197,9 +213,17 @@ def run_twister_step(request_json: str, seed: int) -> dict[str, Any]:
         surface=request.action.surface,
         target=None if request.action.target is None else np.asarray(request.action.target),
     )
-    deadline = started + request.time_budget_s
+    until = started + budget_s  # twister_step's deadline is on the perf_counter clock
     with clock.stage("step"):
-        result = twister_step(ctx, state, action, rng=rng, until=deadline, rate=request.rate)
+        result = twister_step(
+            ctx,
+            state,
+            action,
+            rng=rng,
+            until=until,
+            rate=request.rate,
+            timing=timing_of(request.options),
+        )
     failure = None
     if result.failure is not None:
         failure = schemas.FailureOut(
@@ -253,60 +277,38 @@ def roadmap_id(request: schemas.RoadmapRequest, registry: Registry) -> str:
     )
 
 
-def status_path(directory: Path, rid: str) -> Path:
-    return directory / f"{rid}.status.json"
-
-
-def write_status(directory: Path, rid: str, **status: Any) -> None:
-    """Atomically replace a roadmap's build status file."""
-    target = status_path(directory, rid)
-    fd, tmp = tempfile.mkstemp(dir=directory, prefix=".tmp-", suffix=".json")
-    with os.fdopen(fd, "w") as handle:
-        json.dump({"id": rid, **status}, handle)
-    os.replace(tmp, target)
-
-
-def build_roadmap_job(request_json: str, rid: str) -> None:
-    """Build and store a roadmap in a worker, writing its progress to its status file."""
+def build_roadmap_job(request_json: str, job_id: str, jobs_db: str) -> dict[str, Any]:
+    """Build and store a roadmap in a worker, writing its progress to the job store at
+    ``jobs_db``; returns the job's result (the roadmap's id and size)."""
     request = schemas.RoadmapRequest.model_validate_json(request_json)
-    directory = worker_settings().roadmaps_path
-    started = time.perf_counter()
+    store = SqliteJobStore(Path(jobs_db))
     last = [-1.0]
 
     def progress(fraction: float) -> None:
-        if fraction - last[0] >= 0.02 or fraction >= 1.0:
+        if fraction - last[0] >= PROGRESS_STEP or fraction >= 1.0:
             last[0] = fraction
-            write_status(
-                directory,
-                rid,
-                status="running",
-                progress=min(1.0, max(0.0, fraction)),
-                seconds=time.perf_counter() - started,
-            )
+            store.progress(job_id, fraction)
 
-    try:
-        entry = character_entry(request.character)
-        scene = scene_by_id(request.scene)
-        write_status(directory, rid, status="running", progress=0.0, seconds=0.0)
-        RoadmapStore(directory).build(
-            scene,
-            entry.character,
-            entry.data,
-            jump_params(request),
-            request.nodes,
-            request.seed,
-            progress=progress,
-        )
-        status_path(directory, rid).unlink(missing_ok=True)
-    except Exception as exc:  # recorded for GET /v1/roadmaps/{id}
-        write_status(
-            directory,
-            rid,
-            status="failed",
-            progress=last[0] if last[0] > 0 else 0.0,
-            message=f"{type(exc).__name__}: {exc}",
-            seconds=time.perf_counter() - started,
-        )
+    entry = character_entry(request.character)
+    scene = scene_by_id(request.scene)
+    roadmaps = RoadmapStore(worker_settings().roadmaps_path)
+    rid = roadmaps.build(
+        scene,
+        entry.character,
+        entry.data,
+        jump_params(request),
+        request.nodes,
+        request.seed,
+        progress=progress,
+    )
+    info = roadmaps.info(rid) or {}
+    return {
+        "kind": "roadmap",
+        "id": rid,
+        "url": f"/v1/roadmaps/{rid}",
+        "nodes": int(info.get("nodes", 0)),
+        "edges": int(info.get("edges", 0)),
+    }
 
 
 def _jump_endpoint(endpoint: schemas.EndpointIn) -> np.ndarray:
@@ -331,8 +333,10 @@ def _jump_end(end: JumpEnd) -> schemas.JumpEndOut:
     )
 
 
-def run_jumps(request_json: str, seed: int) -> dict[str, Any]:
-    """``POST /v1/jumps`` in a worker: the response as a JSON-ready dict."""
+def run_jumps(request_json: str, seed: int, deadline: float | None = None) -> dict[str, Any]:
+    """``POST /v1/jumps`` in a worker: the response as a JSON-ready dict; planning (and a
+    roadmap built on the way) stops at ``deadline`` (monotonic s; None: the budget from
+    now)."""
     request = schemas.JumpRequest.model_validate_json(request_json)
     entry = character_entry(request.character)
     scene = scene_by_id(request.scene)
@@ -354,7 +358,7 @@ def run_jumps(request_json: str, seed: int) -> dict[str, Any]:
             rng=np.random.default_rng(seed),
             roadmap=roadmap,
             params=params,
-            until=Deadline(request.time_budget_s),
+            until=Deadline(budget_left(deadline, request.time_budget_s)),
         )
     except ValueError as exc:  # a roadmap built for another scene or character
         raise invalid(str(exc), "roadmap") from exc

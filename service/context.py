@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from contextvars import ContextVar, Token
 from dataclasses import dataclass, field
 from typing import Any
@@ -13,6 +14,7 @@ class RequestContext:
 
     request_id: str
     fields: dict[str, Any] = field(default_factory=dict)
+    arrived: float = field(default_factory=time.monotonic)  # monotonic s, at the first byte
 
 
 _current: ContextVar[RequestContext | None] = ContextVar("gecko_request", default=None)
@@ -39,3 +41,9 @@ def current_request_id() -> str | None:
     """The id of the request being served in this task, if any."""
     context = _current.get()
     return context.request_id if context is not None else None
+
+
+def arrival_time() -> float:
+    """When the request being served arrived (:func:`time.monotonic` s); now outside one."""
+    context = _current.get()
+    return context.arrived if context is not None else time.monotonic()

@@ -15,16 +15,26 @@ from service.context import annotate
 class ApiError(Exception):
     """An error with an HTTP status, a stable code, a message and the offending field."""
 
-    def __init__(self, status: int, code: str, message: str, field: str | None = None) -> None:
+    def __init__(
+        self,
+        status: int,
+        code: str,
+        message: str,
+        field: str | None = None,
+        headers: dict[str, str] | None = None,
+    ) -> None:
         super().__init__(message)
         self.status = status
         self.code = code
         self.message = message
         self.field = field
+        self.headers = headers
 
-    def __reduce__(self) -> tuple[type[ApiError], tuple[int, str, str, str | None]]:
+    def __reduce__(
+        self,
+    ) -> tuple[type[ApiError], tuple[int, str, str, str | None, dict[str, str] | None]]:
         # Raised in worker processes and re-raised in the server: keep it picklable.
-        return (ApiError, (self.status, self.code, self.message, self.field))
+        return (ApiError, (self.status, self.code, self.message, self.field, self.headers))
 
 
 def not_found(kind: str, identifier: str, field: str) -> ApiError:
@@ -48,7 +58,11 @@ def install_error_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(ApiError)
     async def _api_error(_: Request, exc: ApiError) -> JSONResponse:
-        return JSONResponse(error_body(exc.code, exc.message, exc.field), status_code=exc.status)
+        return JSONResponse(
+            error_body(exc.code, exc.message, exc.field),
+            status_code=exc.status,
+            headers=exc.headers,
+        )
 
     @app.exception_handler(RequestValidationError)
     async def _validation(_: Request, exc: RequestValidationError) -> JSONResponse:

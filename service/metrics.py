@@ -8,7 +8,7 @@ requests it served: a scrape reaches one of them. Prometheus' multiprocess mode 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
-from concurrent.futures import Future
+from typing import Protocol
 
 from prometheus_client import CollectorRegistry, Counter, Gauge, Histogram, generate_latest
 from prometheus_client.core import GaugeMetricFamily
@@ -16,33 +16,77 @@ from prometheus_client.registry import Collector
 
 from service.settings import LATENCY_BUCKETS_S
 
+JOB_KINDS = ("roadmap", "plan")
+JOB_STATES = ("queued", "running", "done", "failed", "cancelled", "interrupted")
+
 UNMATCHED_ROUTE = "<unmatched>"  # one label for every path no route serves (bounded labels)
-JOB_STATES = ("queued", "running", "finished")
 
 
-class RoadmapJobs(Collector):
-    """Roadmap builds of this process by state, read from the live futures at each scrape."""
+class GateLike(Protocol):
+    """What the metrics read of a lane (service.lanes.Gate)."""
 
-    def __init__(self, jobs: Callable[[], Mapping[str, Future[None]]]) -> None:
-        self._jobs = jobs
+    name: str
+    slots: int
+    queue: int
+
+    @property
+    def running(self) -> int: ...
+
+    @property
+    def waiting(self) -> int: ...
+
+
+class Gates(Collector):
+    """Each lane's depth, running work and bounds, read at each scrape."""
+
+    def __init__(self, gates: Callable[[], Iterable[GateLike]]) -> None:
+        self._gates = gates
 
     def collect(self) -> Iterable[GaugeMetricFamily]:
-        counts = dict.fromkeys(JOB_STATES, 0)
-        for job in list(self._jobs().values()):
-            state = "finished" if job.done() else "running" if job.running() else "queued"
-            counts[state] += 1
-        family = GaugeMetricFamily(
-            "gecko_roadmap_jobs",
-            "Roadmap builds started by this process, by state (finished: done or failed).",
-            labels=["state"],
+        gates = list(self._gates())
+        families = {
+            "gecko_queue_depth": ("Work admitted and waiting for a slot, by lane.", "waiting"),
+            "gecko_queue_limit": ("Most work that may wait for a slot, by lane.", "queue"),
+            "gecko_lane_running": ("Work holding a slot (running), by lane.", "running"),
+            "gecko_lane_slots": ("Slots (processes, or uploads at once), by lane.", "slots"),
+        }
+        for name, (text, attribute) in families.items():
+            family = GaugeMetricFamily(name, text, labels=["lane"])
+            for gate in gates:
+                family.add_metric([gate.name], float(getattr(gate, attribute)))
+            yield family
+        tasks = GaugeMetricFamily(
+            "gecko_worker_tasks",
+            "Plans, steps and jumps admitted and not answered yet (waiting or running).",
         )
-        for state, count in counts.items():
-            family.add_metric([state], count)
+        tasks.add_metric(
+            [], float(sum(g.running + g.waiting for g in gates if g.name == "interactive"))
+        )
+        yield tasks
+
+
+class JobCounts(Collector):
+    """Jobs in the shared job store by kind and state (every service worker's), at each
+    scrape."""
+
+    def __init__(self, counts: Callable[[], Mapping[tuple[str, str], int]]) -> None:
+        self._counts = counts
+
+    def collect(self) -> Iterable[GaugeMetricFamily]:
+        family = GaugeMetricFamily(
+            "gecko_jobs",
+            "Jobs (roadmap builds, asynchronous plans) in the job store, by kind and state.",
+            labels=["kind", "state"],
+        )
+        counts = dict(self._counts())
+        for kind in JOB_KINDS:
+            for state in JOB_STATES:
+                family.add_metric([kind, state], float(counts.get((kind, state), 0)))
         yield family
 
 
 class Metrics:
-    """The service's metrics: requests, answers, worker tasks and restarts, roadmap jobs."""
+    """The service's metrics: requests, answers, lanes, worker restarts, jobs."""
 
     def __init__(self) -> None:
         self.registry = CollectorRegistry(auto_describe=True)
@@ -70,10 +114,17 @@ class Metrics:
             ["kind", "status"],
             registry=self.registry,
         )
-        self.worker_tasks = Gauge(
-            "gecko_worker_tasks",
-            "Plans, steps and jumps submitted to the planning processes and not answered yet "
-            "(waiting or running).",
+        self.refused = Counter(
+            "gecko_refused",
+            "Work refused with a 503, by lane and reason (queue_full, queue_timeout).",
+            ["lane", "reason"],
+            registry=self.registry,
+        )
+        self.cancelled = Counter(
+            "gecko_worker_tasks_stopped",
+            "Tasks whose process was killed before they answered, by lane and reason "
+            "(timeout; cancelled: the client went away or the job was deleted).",
+            ["lane", "reason"],
             registry=self.registry,
         )
         self.worker_processes = Gauge(
@@ -83,13 +134,17 @@ class Metrics:
         )
         self.worker_restarts = Counter(
             "gecko_worker_pool_restarts",
-            "Times the planning process pool was replaced after a process died.",
+            "Planning or job processes replaced after dying on their own.",
             registry=self.registry,
         )
 
-    def watch_roadmap_jobs(self, jobs: Callable[[], Mapping[str, Future[None]]]) -> None:
-        """Report the roadmap builds ``jobs()`` returns (id -> future) at each scrape."""
-        self.registry.register(RoadmapJobs(jobs))
+    def watch_gates(self, gates: Callable[[], Iterable[GateLike]]) -> None:
+        """Report the lanes ``gates()`` returns at each scrape."""
+        self.registry.register(Gates(gates))
+
+    def watch_jobs(self, counts: Callable[[], Mapping[tuple[str, str], int]]) -> None:
+        """Report the job counts ``counts()`` returns ((kind, state) -> n) at each scrape."""
+        self.registry.register(JobCounts(counts))
 
     def observe_request(self, method: str, route: str, status: int, seconds: float) -> None:
         """Count one answered request and its latency (s)."""

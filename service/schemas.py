@@ -277,6 +277,40 @@ class OtherCharacterIn(BaseModel):
     configuration: ConfigurationIn
 
 
+MIN_SPEED, MAX_SPEED = 0.25, 3.0  # planner.motion.sequence's bounds on options.speed
+TransitionCostKind = Literal["distance", "tired", "groovy", "to_one_side", "low"]
+
+
+class AttractorIn(BaseModel):
+    """A transition point placed by the user (2PAC section 7.3): where the COM passes when
+    phase change ``transition`` happens (0 is the first contact change of the plan)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    transition: int = Field(ge=0, le=10_000)
+    point: Point3
+
+
+class TimingOptionsIn(BaseModel):
+    """How the COM of a plan or a Twister step is timed (2PAC sections 6.4, 7.3)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    speed: float = Field(
+        default=1.0,
+        ge=MIN_SPEED,
+        le=MAX_SPEED,
+        description="factor on the nominal pace of the COM and of the swings; "
+        "the report's dynamic_validity says how physical the result is",
+    )
+    attractors: list[AttractorIn] = Field(
+        default_factory=list,
+        max_length=64,
+        description="user-placed transition points; each is honoured when balanced and "
+        "reachable for both phases, else refused (report.attractors says why)",
+    )
+
+
 class TwisterStepRequest(BaseModel):
     """One Twister move from exactly one of ``state`` (an earlier answer's) or ``stand_at``."""
 
@@ -316,6 +350,11 @@ class TwisterStepRequest(BaseModel):
     seed: Seed | None = None
     time_budget_s: TimeBudget = 5.0
     rate: Rate = 30.0
+    options: TimingOptionsIn = Field(
+        default_factory=TimingOptionsIn,
+        description="timing of the step's motion, as for a plan (its one transition is 0; "
+        "the transition point is the new state's COM unless an attractor moves it)",
+    )
 
     @model_validator(mode="after")
     def _state_or_stand(self) -> TwisterStepRequest:
@@ -359,9 +398,12 @@ class RoadmapRequest(BaseModel):
     seed: Seed = 0
 
 
+JobStateName = Literal["queued", "running", "done", "failed", "cancelled", "interrupted"]
+
+
 class RoadmapStatus(BaseModel):
     id: str
-    status: Literal["queued", "running", "done", "failed", "interrupted"]
+    status: JobStateName
     progress: float = Field(ge=0, le=1)
     nodes: int = 0
     edges: int = 0
@@ -452,29 +494,29 @@ class JumpResponse(BaseModel):
 MAX_PITCH = 0.8  # rad, planner.character.MAX_PITCH (clients import this module, not planner)
 
 
-MIN_SPEED, MAX_SPEED = 0.25, 3.0  # planner.motion.sequence's bounds on options.speed
-TransitionCostKind = Literal["distance", "tired", "groovy", "to_one_side", "low"]
-
-
-class AttractorIn(BaseModel):
-    """A transition point placed by the user (2PAC section 7.3): where the COM passes when
-    phase change ``transition`` happens (0 is the first contact change of the plan)."""
-
-    model_config = ConfigDict(extra="forbid")
-
-    transition: int = Field(ge=0, le=10_000)
-    point: Point3
-
-
-class PlanOptionsIn(BaseModel):
+class PlanOptionsIn(TimingOptionsIn):
     """Tuning of a contact plan; every field has a bound."""
 
     model_config = ConfigDict(extra="forbid")
 
+    transition_cost: TransitionCostKind = Field(
+        default="tired",
+        description="how transition points are chosen (2PAC 7.3): distance (closest to the "
+        "previous), tired (least travel over both neighbours), groovy (alternating "
+        "sideways), to_one_side, low (COM as low as possible)",
+    )
+    cost_strength: float = Field(
+        default=0.3, ge=0, le=2.0, description="m, weight of the groovy/to_one_side/low terms"
+    )
+
     rate: Rate = 30.0
     margin: float = Field(default=1.0, ge=0, le=1000, description="equilibrium robustness, N")
-    lookahead: float = Field(
-        default=0.15, gt=0, le=2.0, description="m ahead of the body where footholds are aimed"
+    lookahead: float | None = Field(
+        default=None,
+        gt=0,
+        le=2.0,
+        description="m ahead of the body where footholds are aimed (default: a third of the "
+        "leg length on open ground, 0.15 m on steps, rocks and slopes)",
     )
     max_states: int = Field(default=200, ge=2, le=2000)
     max_pitch: float | None = Field(
@@ -489,33 +531,12 @@ class PlanOptionsIn(BaseModel):
         max_length=16,
         description="limbs the walk may use besides those of the start and goal (a hand on a rail)",
     )
-    speed: float = Field(
-        default=1.0,
-        ge=MIN_SPEED,
-        le=MAX_SPEED,
-        description="factor on the nominal pace of the COM and of the swings; "
-        "the report's dynamic_validity says how physical the result is",
-    )
-    transition_cost: TransitionCostKind = Field(
-        default="tired",
-        description="how transition points are chosen (2PAC 7.3): distance (closest to the "
-        "previous), tired (least travel over both neighbours), groovy (alternating "
-        "sideways), to_one_side, low (COM as low as possible)",
-    )
-    cost_strength: float = Field(
-        default=0.3, ge=0, le=2.0, description="m, weight of the groovy/to_one_side/low terms"
-    )
-    attractors: list[AttractorIn] = Field(
-        default_factory=list,
-        max_length=64,
-        description="user-placed transition points; each is honoured when balanced and "
-        "reachable for both phases, else refused (report.attractors says why)",
-    )
 
 
 class PlanRequest(BaseModel):
     model_config = ConfigDict(
         extra="forbid",
+        populate_by_name=True,
         json_schema_extra={
             "examples": [
                 {
@@ -537,6 +558,39 @@ class PlanRequest(BaseModel):
     options: PlanOptionsIn = Field(default_factory=PlanOptionsIn)
     seed: Seed | None = None
     time_budget_s: TimeBudget = 10.0
+    run_async: bool = Field(
+        default=False,
+        alias="async",
+        exclude=True,  # how the answer is delivered, not what it is: not in the result id
+        description="true: answer 202 at once with a job (Location: /v1/jobs/{id}) that runs "
+        "in the background lane; its budget counts from when it starts",
+    )
+
+
+class JobResult(BaseModel):
+    """What a finished job made: a stored plan, or a roadmap."""
+
+    kind: Literal["plan", "roadmap"]
+    id: str
+    url: str = Field(description="where to GET it")
+    status: PlanStatusName | None = Field(default=None, description="a plan's status")
+
+
+class JobStatus(BaseModel):
+    """A job (roadmap build or asynchronous plan), as any service worker reads it."""
+
+    id: str
+    kind: Literal["plan", "roadmap"]
+    status: JobStateName = Field(
+        description="queued, running, done, failed, cancelled (a DELETE) or interrupted "
+        "(the service stopped while it ran: submit it again)"
+    )
+    progress: float = Field(ge=0, le=1)
+    message: str = ""
+    result: JobResult | None = None
+    created_at: float = Field(description="Unix time, s")
+    started_at: float | None = Field(default=None, description="Unix time, s")
+    finished_at: float | None = Field(default=None, description="Unix time, s")
 
 
 class PlanResponse(BaseModel):

@@ -17,6 +17,17 @@ LATENCY_BUCKETS_S = (
 )  # fmt: skip
 LogLevel = Literal["debug", "info", "warning", "error"]
 
+# Admission control (service.lanes). Seconds a refused client is told to wait (Retry-After),
+# per lane: interactive answers take about a second, uploads and background jobs longer.
+RETRY_AFTER_S = {"interactive": 1, "jobs": 5, "uploads": 5}
+UPLOAD_CONCURRENCY = 1  # uploads parsed at once per service worker (the others wait in line)
+# Jobs (service.jobs): how often (s) a service worker renews its heartbeat and looks for
+# DELETEs of the jobs it runs, and how old (s) a heartbeat may be before the jobs of its
+# service worker are reported interrupted (it died without saying so).
+JOB_POLL_S = 0.5
+JOB_OWNER_STALE_S = 15.0
+JOBS_KEPT = 10_000  # finished jobs kept in the store; the oldest go first
+
 
 class Settings(BaseSettings):
     """Where Gecko keeps its files and how much work one request may ask for."""
@@ -44,6 +55,34 @@ class Settings(BaseSettings):
         default=2, ge=1, le=64, description="planning processes per service worker"
     )
     data_seed: int = Field(default=0, ge=0)
+    interactive_queue: int = Field(
+        default=16,
+        ge=0,
+        le=1024,
+        description="plans, Twister steps and jumps that may wait for a planning process "
+        "(beyond those running) per service worker; more get 503 with Retry-After",
+    )
+    job_processes: int = Field(
+        default=1,
+        ge=1,
+        le=16,
+        description="processes per service worker for background jobs (roadmap builds, "
+        "asynchronous plans), apart from the planning processes",
+    )
+    job_queue: int = Field(
+        default=16,
+        ge=0,
+        le=1024,
+        description="background jobs that may wait for a job process per service worker; "
+        "more get 503 with Retry-After",
+    )
+    upload_queue: int = Field(
+        default=4,
+        ge=0,
+        le=64,
+        description="scene uploads that may wait while another is parsed, per service "
+        "worker; more get 503 with Retry-After",
+    )
     results_max_count: int = Field(
         default=500, ge=1, le=1_000_000, description="stored results kept (least recently used go)"
     )
@@ -105,6 +144,11 @@ class Settings(BaseSettings):
     def roadmaps_path(self) -> Path:
         """Jump roadmaps and their build status files."""
         return self.home / "roadmaps"
+
+    @property
+    def jobs_db_path(self) -> Path:
+        """The SQLite file of the job store, shared by every service worker."""
+        return self.home / "jobs.sqlite3"
 
     @property
     def results_path(self) -> Path:

@@ -18,6 +18,7 @@ from planner.contact.generation import ContactAttempt, break_contact, create_con
 from planner.contact.state import ContactState
 from planner.contact.step_motion import StepMotion, step_motion
 from planner.motion import ComSegment, Keyframe, Phase
+from planner.motion.sequence import Timing
 
 FloatArray = NDArray[np.float64]
 
@@ -94,8 +95,12 @@ def twister_step(
     rng: np.random.Generator,
     until: float | None = None,
     rate: float = 30.0,
+    timing: Timing | None = None,
 ) -> StepResult:
     """Perform one contact change; never raises on an infeasible request.
+
+    ``timing`` times the motion like a plan's (speed, the user's attractor for the one
+    transition, index 0).
 
     ``until`` is a ``time.perf_counter()`` deadline after which ``auto`` stops trying limbs.
     ``auto`` draws limbs in random order (``rng``); a limb in contact is released, a free one
@@ -149,7 +154,7 @@ def twister_step(
             continue
         t0 = time.perf_counter()
         try:
-            motion = step_motion(ctx, state, attempt.state, attempt.limb, rate=rate)
+            motion = step_motion(ctx, state, attempt.state, attempt.limb, rate=rate, timing=timing)
         except (ValueError, np.linalg.LinAlgError) as error:  # defensive: report, never raise
             t_motion += time.perf_counter() - t0
             entry.update(ok=False, reason=FailureReason.MOTION_FAILED.value, message=str(error))

@@ -63,27 +63,49 @@ _ADVANCE_SLACK = 0.03  # m: an advance leaves the COM this deep in every leg's r
 # no shallower than it was): a leg left at the end of its range cannot be released
 _ROOT_FRAME = 1  # Pinocchio frame of the free-flyer root joint
 _PROGRESS_WEIGHTS = np.array([1.0, 1.0, 1.0 / 3.0])
+STRIDE_SHARE = 0.35
+"""Look-ahead on open ground as a share of the walking limbs' length (root to effector at
+the reference posture, mean): 0.34 m for the 1 m humanoid legs, strides of about 0.4 m;
+the quadrupeds and the hexapod in proportion to their legs."""
+ADVANCE_SHARE = 0.7
+"""Body advance per gait cycle on open ground, as a share of the look-ahead."""
+OPEN_GROUND_GAIN = 2.0
+"""Open-ground strides are used only when they are at least this many times the rough ones:
+the bipeds' (humanoid 2.3, Talos 2.4). Measured on the four-legged and six-legged walkers
+(HyQ 1.8, quadruped 1.5, hexapod 1.1): their flat-ground strides stay 0.35 m either way (the
+crawl is bounded by the kinematic COM polytopes, not the look-ahead), while longer advances
+made the HyQ slalom and the hexapod wall climb stop progressing."""
+OPEN_GROUND_MARGIN = 0.15
+"""m added to the legs' horizontal reach around the root: no scene surface vertex off the
+ground's height may lie that close to the path ahead for the ground to count as open."""
+ROUGH_LOOKAHEAD = 0.15  # m: look-ahead off open ground (stairs, rocks, walls, slopes)
+ROUGH_ADVANCE = 0.1  # m: body advance per gait cycle off open ground
+OPEN_GROUND_RISE = 0.03
+"""m: ground counts as open when the guide and every foothold one and two long strides
+ahead stay within this height of the body's current contacts, each foothold this close to
+under the foot's nominal position (no step, rock, slope or obstacle in the way)."""
 _FOOTHOLD_RADIUS = 0.35  # m around a limb's nominal position searched for its foothold
 _OPTIONAL_RADIUS = 0.3  # the same for an optional limb (a hand reaching for a rail)
 
 
 @dataclass(frozen=True, slots=True)
 class SequenceParams:
-    """spacing : m between root samples along the guide path. lookahead : m ahead of the body
-    along the path where the desired footholds are taken. advance : m the body is moved
-    toward per gait cycle. min_step : m, a limb closer than this to its foothold does not
-    step. goal_tolerance : m, a contact this close to the goal's counts as reached.
-    max_states : cap on emitted states. max_stuck : gait cycles in a row with neither body
-    progress nor a step before giving up. idle_rounds : gait rounds (a cycle per walking
-    limb) without the body getting further along the guide before giving up (steps that
-    lead nowhere; the planner then retries along a new guide). jitter : m, scale of the
-    random term added to the scores of contact candidates (``create_contact``'s
+    """spacing : m between root samples along the guide path. lookahead : m ahead of the body along
+    the path where the desired footholds are taken (None: terrain-aware, see
+    :func:`gait_lengths`). advance : m the body is moved toward per gait cycle (None:
+    terrain-aware, like the lookahead). min_step : m, a limb closer than this
+    to its foothold does not step. goal_tolerance : m, a contact this close to the goal's
+    counts as reached. max_states : cap on emitted states. max_stuck : gait cycles in a row
+    with neither body progress nor a step before giving up. idle_rounds : gait rounds (a
+    cycle per walking limb) without the body getting further along the guide before giving
+    up (steps that lead nowhere; the planner then retries along a new guide). jitter : m,
+    scale of the random term added to the scores of contact candidates (``create_contact``'s
     ``randomness``); retries raise it.
     """
 
     spacing: float = 0.05
-    lookahead: float = 0.15
-    advance: float = 0.1
+    lookahead: float | None = None
+    advance: float | None = None
     min_step: float = 0.05
     goal_tolerance: float = 0.03
     max_states: int = 200
@@ -94,9 +116,9 @@ class SequenceParams:
     def __post_init__(self) -> None:
         if not 0 < self.spacing <= 0.5:
             raise ValueError("spacing must be in (0, 0.5] m")
-        if not 0 < self.lookahead <= 2.0:
+        if self.lookahead is not None and not 0 < self.lookahead <= 2.0:
             raise ValueError("lookahead must be in (0, 2] m")
-        if not 0 < self.advance <= 1.0:
+        if self.advance is not None and not 0 < self.advance <= 1.0:
             raise ValueError("advance must be in (0, 1] m")
         if not 0 < self.min_step <= 0.5:
             raise ValueError("min_step must be in (0, 0.5] m")
@@ -118,6 +140,53 @@ def _effector_offsets(ctx: ContactContext) -> dict[str, FloatArray]:
     for limb in ctx.character.limbs:
         placement = frame_placement(ctx.model, q_ref, limb.effector_frame)
         out[limb.name] = (root_inv @ placement)[:3, 3]
+    return out
+
+
+@dataclass(frozen=True, slots=True)
+class GaitLengths:
+    """Look-ahead and body advance per gait cycle (m) on open ground and off it."""
+
+    open_lookahead: float
+    open_advance: float
+    rough_lookahead: float
+    rough_advance: float
+
+    def of(self, open_ground: bool) -> tuple[float, float]:
+        """(lookahead, advance) in m for the ground ahead."""
+        if open_ground:
+            return self.open_lookahead, self.open_advance
+        return self.rough_lookahead, self.rough_advance
+
+
+def gait_lengths(
+    offsets: dict[str, FloatArray], walking: Sequence[str], params: SequenceParams
+) -> GaitLengths:
+    """The gait's lengths: the params' own where given (the same on any ground), else on open
+    ground ``STRIDE_SHARE`` of the walking limbs' length (``offsets`` from
+    :func:`_effector_offsets`, root frame) and ``ADVANCE_SHARE`` of that, and off it
+    ``ROUGH_LOOKAHEAD`` and ``ROUGH_ADVANCE`` (never longer than on open ground)."""
+    lengths = [float(np.linalg.norm(offsets[name])) for name in walking if name in offsets]
+    scale = float(np.mean(lengths)) if lengths else 1.0
+    open_look = min(2.0, STRIDE_SHARE * scale)
+    rough_look = min(ROUGH_LOOKAHEAD, open_look)
+    if params.lookahead is not None:
+        open_look = rough_look = params.lookahead
+    open_adv = min(1.0, ADVANCE_SHARE * open_look)
+    rough_adv = min(ROUGH_ADVANCE, open_adv)
+    if params.advance is not None:
+        open_adv = rough_adv = params.advance
+    return GaitLengths(open_look, open_adv, rough_look, rough_adv)
+
+
+def _surface_points(ctx: ContactContext) -> FloatArray:
+    """Every polygon vertex (n, 3) of the scene's surfaces (world frame, m; cached)."""
+
+    def make() -> FloatArray:
+        loops = [loop for surface in ctx.scene.surfaces for loop in surface.polygons]
+        return np.concatenate(loops).reshape(-1, 3) if loops else np.zeros((0, 3))
+
+    out: FloatArray = ctx.cached("surface_points", make)
     return out
 
 
@@ -254,6 +323,8 @@ def contact_sequence(
     optional = [x for x in limbs if x not in walking]
     walking += optional
     order = gait_order(offsets, walking)
+    legs = [x for x in walking if x not in optional]
+    gait = gait_lengths(offsets, legs, p)
     states: list[ContactState] = [start]
     current = start  # the body now: states[-1]'s contacts, its posture moved on by advances
     stats: dict[str, float | int | str] = {"breaks": 0, "creations": 0, "cycles": 0}
@@ -291,6 +362,38 @@ def contact_sequence(
         if goal is not None and at >= guide.length - 1e-9:
             out.update({c.limb: c.position for c in goal.contacts})
         return out
+
+    # m: horizontal reach of the legs around the root, plus a margin
+    reach_radius = max(float(np.linalg.norm(offsets[x][:2])) for x in legs) + OPEN_GROUND_MARGIN
+
+    def open_ground() -> bool:
+        # level open ground ahead: the guide stays level over two long look-aheads, no scene
+        # surface off the ground's height lies within the legs' reach of it, and every leg
+        # finds a foothold right under its nominal position there, at the height of the
+        # contacts held now (no step, rock, gap or obstacle pushing a foot aside)
+        if gait.open_lookahead < OPEN_GROUND_GAIN * gait.rough_lookahead:
+            return False
+        heights = [float(c.position[2]) for c in current.contacts if c.limb in legs]
+        if len(heights) != len(legs) or max(heights) - min(heights) > OPEN_GROUND_RISE:
+            return False
+        points = _surface_points(ctx)
+        for ahead in (s, s + gait.open_lookahead, s + 2.0 * gait.open_lookahead):
+            pose = guide.at(min(ahead, guide.length))
+            near = np.linalg.norm(points[:, :2] - pose[:2, 3], axis=1) < reach_radius
+            if np.any(np.abs(points[near, 2] - heights[0]) > OPEN_GROUND_RISE):
+                return False  # a rock, a step, a wall or a hole within the legs' reach
+            if abs(pose[2, 3] - guide.at(s)[2, 3]) > OPEN_GROUND_RISE:
+                return False
+            for limb in legs:
+                nominal = pose[:3, :3] @ offsets[limb] + pose[:3, 3]
+                found = nearest_foothold(ctx, limb, nominal, within=_FOOTHOLD_RADIUS)
+                if (
+                    found is None
+                    or abs(float(found[2]) - heights[0]) > OPEN_GROUND_RISE
+                    or float(np.linalg.norm(found[:2] - nominal[:2])) > OPEN_GROUND_RISE
+                ):
+                    return False
+        return True
 
     def let_go(limb: str) -> bool:
         # an optional limb whose support has run out (the end of a handrail) is released
@@ -338,7 +441,7 @@ def contact_sequence(
         return False
 
     stuck = 0
-    reach = p.lookahead  # m ahead where footholds are taken; grows while stuck
+    reach = gait.rough_lookahead  # m ahead where footholds are taken; grows while stuck
     furthest, idle = s, 0  # the furthest the body got, and cycles since
     while True:
         if until():
@@ -346,12 +449,16 @@ def contact_sequence(
         if len(states) >= p.max_states:
             return result(PlanStatus.APPROXIMATE, f"stopped at {p.max_states} states")
         stats["cycles"] = int(stats["cycles"]) + 1
+        # long strides on open ground; a walker that is stuck goes back to short ones
+        opened = stuck == 0 and open_ground()
+        lookahead, advance = gait.of(opened)
+        stats["open_cycles"] = int(stats.get("open_cycles", 0)) + int(opened)
         # 1. advance the body along the guide
         moved = False
         if s < guide.length - 1e-9:
             slack = kinematic_slack(ctx, current)
             for fraction, rise, over_body in _ADVANCE_TRIES:
-                target_s = min(s + fraction * p.advance, guide.length)
+                target_s = min(s + fraction * advance, guide.length)
                 target = guide.at(target_s)
                 if over_body:
                     target[2, 3] = max(target[2, 3], float(current.q[2]))
@@ -370,7 +477,7 @@ def contact_sequence(
         # 2. step the limb furthest from its foothold
         at_end = s >= guide.length - p.spacing
         # a stuck walker looks further ahead for footholds (a gap between stepping stones)
-        reach = p.lookahead * (1 + stuck)
+        reach = lookahead * (1 + stuck)
         wanted = footholds(guide.length if at_end else s + reach)
         gaps = {}
         for limb in order:

@@ -31,6 +31,7 @@ from planner.contact.reachability import ground_limbs
 from planner.contact.state import ContactState
 from planner.kinematics import FramePlacementTask, Priority
 from planner.motion import ComSegment, Keyframe, Phase
+from planner.motion.sequence import Timing
 from planner.motion.step import BuiltStep, build_step
 
 FloatArray = NDArray[np.float64]
@@ -63,8 +64,11 @@ def step_motion(
     limb: str,
     *,
     rate: float = 30.0,
+    timing: Timing | None = None,
 ) -> StepMotion:
-    """Phases, COM curve and keyframes taking ``before`` to ``after`` (``limb`` changes).
+    """Phases, COM curve and keyframes taking ``before`` to ``after`` (``limb`` changes),
+    timed by ``timing`` (speed and the user's attractor; see
+    :func:`planner.motion.step.step_com`).
 
     When keyframes still collide, the transition point is moved along the obstacle normal
     and the motion rebuilt (2PAC 7.2); the motion then ends in the re-posed state,
@@ -72,9 +76,11 @@ def step_motion(
     ``fraction_valid``, ``worst_violation`` N), ``transition`` (``point``, ``margin`` N,
     ``kinematic_violation`` m), ``transition_slack``, ``quasi_static_feasible``,
     ``max_hold_error`` (m), ``colliding_keyframes``, ``swing_lift`` (m),
-    ``transition_shift`` (m, 0 when not moved) and ``motion`` (the builder's report).
+    ``transition_shift`` (m, 0 when not moved), ``com_method``, ``speed``, ``attractors``
+    (each honoured or refused with the reason) and ``motion`` (the builder's report).
     """
-    motion = _motion(ctx, before, after, limb, rate)
+    timing = timing or Timing()
+    motion = _motion(ctx, before, after, limb, rate, timing)
     if motion.report["colliding_keyframes"] == 0:
         return motion
     normal = next(
@@ -86,17 +92,30 @@ def step_motion(
         None,
     )
     if normal is not None:  # (self-collision only: nothing to move away from)
-        motion = _shift_transition(ctx, before, after, limb, rate, motion, normal)
+        motion = _shift_transition(ctx, before, after, limb, rate, timing, motion, normal)
     return motion
 
 
 def _motion(
-    ctx: ContactContext, before: ContactState, after: ContactState, limb: str, rate: float
+    ctx: ContactContext,
+    before: ContactState,
+    after: ContactState,
+    limb: str,
+    rate: float,
+    timing: Timing,
 ) -> StepMotion:
     """The builder's motion from ``before`` to ``after``, with the contact layer's report."""
     obstacles = [(geometry, transform) for geometry, transform, _, _ in ctx.obstacle_geometry]
     built: BuiltStep = build_step(
-        ctx.character, ctx.scene.collision.bvh, before, after, limb, rate=rate, obstacles=obstacles
+        ctx.character,
+        ctx.data,
+        ctx.scene.collision.bvh,
+        before,
+        after,
+        limb,
+        rate=rate,
+        timing=timing,
+        obstacles=obstacles,
     )
     quality = built.motion.report
     creating = after.contact(limb) is not None
@@ -129,6 +148,9 @@ def _motion(
         "colliding_keyframes": quality.colliding_keyframes,
         "swing_lift": built.lift,
         "transition_shift": 0.0,
+        "com_method": built.timing.method,
+        "speed": timing.speed,
+        "attractors": list(built.timing.attractors),
         "motion": quality.as_dict(),
     }
     return StepMotion(built.motion.phases, built.motion.com, built.motion.keyframes, report, after)
@@ -140,6 +162,7 @@ def _shift_transition(
     after: ContactState,
     limb: str,
     rate: float,
+    timing: Timing,
     motion: StepMotion,
     normal: FloatArray,
 ) -> StepMotion:
@@ -169,7 +192,7 @@ def _shift_transition(
             or max(kin_b.violation(com), kin_a.violation(com)) > KINEMATIC_TOLERANCE
         ):
             continue
-        again = _motion(ctx, before, moved, limb, rate)
+        again = _motion(ctx, before, moved, limb, rate, timing)
         again.report["transition_shift"] = shift
         if again.report["colliding_keyframes"] < motion.report["colliding_keyframes"]:
             motion = again

@@ -140,7 +140,7 @@ def _last_placement(
     return frame_placement(character.model, q, character.limb(limb).effector_frame)
 
 
-def _user_transitions(
+def user_transitions(
     phases: Sequence[trajectory.ContactPhase],
     kinematics: Sequence[trajectory.Halfspaces | None],
     attractors: Sequence[tuple[int, FloatArray]],
@@ -199,6 +199,44 @@ def swing_durations(
     return out
 
 
+def timed_com(
+    character: Character,
+    data: OfflineData,
+    states: Sequence[ContactState],
+    timing: Timing,
+    min_durations: Sequence[float],
+) -> tuple[trajectory.ComTrajectory, list[dict[str, object]]]:
+    """2PAC's sliding window through ``states`` (one phase each, at least one) from the COM
+    of the first to the COM of the last, at rest at both ends: ``timing.speed`` times the
+    nominal pace (``tuning.SECONDS_PER_METRE``), phase k lasting at least
+    ``min_durations[k]`` s, transition points by ``timing.cost`` aiming at the COM of the
+    state after next, or the user's (``timing.attractors``). Returns the trajectory (no
+    dynamic report: see ``trajectory.validate_dynamics``) and, per attractor, whether it was
+    honoured and why not."""
+    speed = timing.speed
+    phases_tr = [contact_phase(character, s) for s in states]
+    kinematics = [phase_kinematics(data, s) for s in states]
+    coms = [com_position(character.model, s.q) for s in states]
+    placed, attractor_report = user_transitions(phases_tr, kinematics, timing.attractors)
+    com_trajectory = trajectory.plan_com_trajectory(
+        phases_tr,
+        coms[0],
+        coms[-1],
+        kinematics=kinematics,
+        cost=timing.cost,
+        user_transitions=placed,
+        targets=[coms[min(j + 2, len(states) - 1)] for j in range(len(states) - 1)],
+        min_durations=list(min_durations),
+        seconds_per_metre=tuning.SECONDS_PER_METRE / speed,
+        min_window=tuning.MIN_SHIFT_S / speed,
+        max_stretch=tuning.MAX_WINDOW_STRETCH,
+        max_speed=tuning.MAX_COM_SPEED * speed,
+        max_acceleration=tuning.FALLBACK_MAX_ACCELERATION,
+        n_checks=0,
+    )
+    return com_trajectory, attractor_report
+
+
 def sequence_motion(
     character: Character,
     data: OfflineData,
@@ -227,27 +265,9 @@ def sequence_motion(
         raise ValueError("states: at least one contact state is needed")
     timing = timing or Timing()
     speed = timing.speed
-    model = character.model
     phases_tr = [contact_phase(character, s) for s in states]
-    kinematics = [phase_kinematics(data, s) for s in states]
-    coms = [com_position(model, s.q) for s in states]
-    start_com, end_com = coms[0], coms[-1]
-    placed, attractor_report = _user_transitions(phases_tr, kinematics, timing.attractors)
-    com_trajectory = trajectory.plan_com_trajectory(
-        phases_tr,
-        start_com,
-        end_com,
-        kinematics=kinematics,
-        cost=timing.cost,
-        user_transitions=placed,
-        targets=[coms[min(j + 2, len(states) - 1)] for j in range(len(states) - 1)],
-        min_durations=swing_durations(character, states, speed),
-        seconds_per_metre=tuning.SECONDS_PER_METRE / speed,
-        min_window=tuning.MIN_SHIFT_S / speed,
-        max_stretch=tuning.MAX_WINDOW_STRETCH,
-        max_speed=tuning.MAX_COM_SPEED * speed,
-        max_acceleration=tuning.FALLBACK_MAX_ACCELERATION,
-        n_checks=0,
+    com_trajectory, attractor_report = timed_com(
+        character, data, states, timing, swing_durations(character, states, speed)
     )
     times = np.asarray(com_trajectory.phase_times, dtype=np.float64)
     curve: trajectory.PiecewiseBezier = com_trajectory.curve

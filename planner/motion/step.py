@@ -1,15 +1,19 @@
 """The motion of one contact change (a Twister step) as a :class:`MotionSpec`, animated by
 the one builder.
 
-Two phases. The COM moves rest-to-rest (quintic) while the larger contact set holds it,
-from the COM of ``before`` to the COM of ``after`` (a 2PAC transition point: in equilibrium
-of the smaller set and in both kinematic COM polytopes, Eq. 5-6), so every phase passes
-the dynamic check of Eq. 1:
+A step is a short plan of two phases, timed like a plan: the swing gets ``MIN_SWING_S`` or
+its distance at ``SWING_SPEED``, ``Timing.speed`` divides the durations, and the user may
+place the transition point (``Timing.attractors``, transition 0). The COM moves rest to
+rest (quintic) through the transition point, from the COM of ``before`` to the COM of
+``after`` (by default the transition point itself: in equilibrium of the smaller set and in
+both kinematic COM polytopes, Eq. 5-6, as the contact planner validated), so every phase
+passes the dynamic check of Eq. 1 (a 2PAC window through a single change, at rest at both
+ends, measured slower and failing Eq. 1 on a quarter of the Twister moves):
 
-- a creation swings the limb during the first phase (``before``'s contacts hold the body
-  while the COM shifts), then settles on ``after``'s contacts;
-- a break first shifts the COM over ``before``'s contacts, then lifts the limb off during
-  the second phase (``after``'s contacts hold).
+- a creation swings the limb during the first phase (``before``'s contacts hold the body),
+  then settles on ``after``'s contacts;
+- a break shifts the COM during the first phase (``before``'s contacts hold), then lifts
+  the limb off during the second (``after``'s contacts hold).
 
 The motion ends exactly in ``after.q`` (the state the contact planner validated).
 """
@@ -28,8 +32,15 @@ from planner.character import Character
 from planner.kinematics import com_position, frame_placement
 from planner.motion import tuning
 from planner.motion.builder import BuiltMotion, build_motion
-from planner.motion.sequence import contact_phase, rest_to_rest
+from planner.motion.sequence import (
+    Timing,
+    contact_phase,
+    phase_kinematics,
+    rest_to_rest,
+    user_transitions,
+)
 from planner.motion.spec import MotionPhase, MotionSpec, Swing
+from planner.offline import OfflineData
 from planner.termination import Termination, never
 
 if TYPE_CHECKING:  # annotations only: planner.contact imports planner.motion
@@ -39,16 +50,27 @@ FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True, slots=True)
+class StepTiming:
+    """How a step's COM was timed: ``method`` (rest to rest through one transition point:
+    a single contact change starts and ends at rest), ``attractors`` per user attractor
+    whether it was honoured and why not."""
+
+    method: str
+    attractors: tuple[dict[str, object], ...]
+
+
+@dataclass(frozen=True, slots=True)
 class BuiltStep:
     """A one-step motion: ``motion`` the builder's answer (keyframes from ``before.q`` to
     exactly ``after.q``), ``validity`` Eq. 1 per phase, ``swing_phase`` the index (0 or 1)
     of the phase in which ``limb`` swings, ``transition`` (3,) the COM where the contact
-    changes (world, m)."""
+    changes (world, m), ``timing`` how the COM was timed (:class:`StepTiming`)."""
 
     motion: BuiltMotion
     validity: tuple[trajectory.PhaseReport, ...]
     swing_phase: int
     transition: FloatArray
+    timing: StepTiming
 
     @property
     def lift(self) -> float:
@@ -56,28 +78,72 @@ class BuiltStep:
         return self.motion.swing_lifts[self.swing_phase]
 
 
+def step_durations(
+    character: Character, before: ContactState, after: ContactState, limb: str, speed: float
+) -> tuple[float, float]:
+    """The shortest each of the two phases may last (s), as in a plan: the swing
+    ``MIN_SWING_S`` or its distance at ``SWING_SPEED`` (whichever is longer), divided by
+    ``speed``; the other phase ``STEP_MIN_SHIFT_S`` divided by ``speed`` but no shorter
+    than the blend into the validated state (``END_BLEND_S``)."""
+    frame = character.limb(limb).effector_frame
+    start = frame_placement(character.model, before.q, frame)[:3, 3]
+    end = frame_placement(character.model, after.q, frame)[:3, 3]
+    swing = max(tuning.MIN_SWING_S, float(np.linalg.norm(end - start)) / tuning.SWING_SPEED)
+    shift = max(tuning.STEP_MIN_SHIFT_S / speed, tuning.END_BLEND_S)
+    if after.contact(limb) is not None:
+        return swing / speed, shift
+    return shift, swing / speed
+
+
+def step_com(
+    character: Character,
+    data: OfflineData,
+    before: ContactState,
+    after: ContactState,
+    limb: str,
+    timing: Timing,
+) -> tuple[trajectory.PiecewiseBezier, FloatArray, StepTiming]:
+    """The COM curve of a step, its (3,) phase times (s) and how it was timed: rest to rest
+    from the COM of ``before`` through the transition point to the COM of ``after``, each
+    phase lasting :func:`step_durations` or longer so that the acceleration stays under
+    ``STEP_MAX_ACCELERATION`` times ``timing.speed`` squared. The transition point is the
+    COM of ``after`` (the contact planner validated it), or the user's attractor for
+    transition 0 when it is balanced and reachable for both phases."""
+    durations = step_durations(character, before, after, limb, timing.speed)
+    c0 = com_position(character.model, before.q)
+    c1 = com_position(character.model, after.q)
+    placed: list[FloatArray | None] | None = None
+    attractors: list[dict[str, object]] = []
+    if timing.attractors:  # the polytopes are only needed to check the user's points
+        placed, attractors = user_transitions(
+            [contact_phase(character, before), contact_phase(character, after)],
+            [phase_kinematics(data, before), phase_kinematics(data, after)],
+            timing.attractors,
+        )
+    point = placed[0] if placed is not None and placed[0] is not None else c1
+    curve, times = rest_to_rest(
+        np.stack([c0, point, c1]),
+        min_durations=durations,
+        max_acceleration=tuning.STEP_MAX_ACCELERATION * timing.speed**2,
+    )
+    return curve, times, StepTiming("rest_to_rest", tuple(attractors))
+
+
 def step_spec(
     character: Character,
+    data: OfflineData,
     before: ContactState,
     after: ContactState,
     limb: str,
     *,
     rate: float = 30.0,
-) -> MotionSpec:
+    timing: Timing | None = None,
+) -> tuple[MotionSpec, StepTiming]:
     """The two phases and the COM curve taking ``before`` to ``after``, which differ by
     ``limb``'s contact (created when ``after`` holds it, broken otherwise)."""
     model = character.model
-    c0, c1 = com_position(model, before.q), com_position(model, after.q)
     creating = after.contact(limb) is not None
-    if creating:
-        durations = (tuning.STEP_MIN_SWING_S, tuning.STEP_MIN_SHIFT_S)
-    else:
-        durations = (tuning.STEP_MIN_SHIFT_S, tuning.STEP_MIN_SWING_S)
-    curve, times = rest_to_rest(
-        np.stack([c0, c1, c1]),
-        min_durations=durations,
-        max_acceleration=tuning.STEP_MAX_ACCELERATION,
-    )
+    curve, times, how = step_com(character, data, before, after, limb, timing or Timing())
     frame = character.limb(limb).effector_frame
     start = frame_placement(model, before.q, frame)
     end = frame_placement(model, after.q, frame)
@@ -93,29 +159,35 @@ def step_spec(
         )
         for k in range(2)
     )
-    return MotionSpec(np.asarray(before.q, dtype=np.float64), phases, curve, rate, q_end=posture)
+    spec = MotionSpec(np.asarray(before.q, dtype=np.float64), phases, curve, rate, q_end=posture)
+    return spec, how
 
 
 def build_step(
     character: Character,
+    data: OfflineData,
     scene_bvh: Any,
     before: ContactState,
     after: ContactState,
     limb: str,
     *,
     rate: float = 30.0,
+    timing: Timing | None = None,
     obstacles: Sequence[tuple[Any, Any]] = (),
     until: Termination = never,
 ) -> BuiltStep:
     """Keyframes, phases and COM curve taking ``before`` to ``after`` in the scene
     ``scene_bvh`` (coal BVH) among static ``obstacles`` ((coal geometry, coal.Transform3s)
     pairs), every keyframe checked (see :func:`build_motion`)."""
-    spec = step_spec(character, before, after, limb, rate=rate)
+    spec, how = step_spec(character, data, before, after, limb, rate=rate, timing=timing)
     motion = build_motion(character, scene_bvh, spec, obstacles=obstacles, until=until)
     times = np.array([spec.phases[0].t0, spec.phases[0].t1, spec.phases[1].t1])
     validity = trajectory.validate_dynamics(
-        spec.com, [contact_phase(character, before), contact_phase(character, after)], times, 5
+        spec.com,
+        [contact_phase(character, before), contact_phase(character, after)],
+        times,
+        tuning.STEP_CHECKS,
     )
     swing_phase = 0 if spec.phases[0].swing is not None else 1
     transition = com_position(character.model, after.q)
-    return BuiltStep(motion, tuple(validity), swing_phase, transition)
+    return BuiltStep(motion, tuple(validity), swing_phase, transition, how)

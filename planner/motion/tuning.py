@@ -136,16 +136,18 @@ along the configuration manifold with a smoothstep weight; the blended keyframes
 checked again."""
 
 # --- one contact change (a Twister step) ------------------------------------------------------
-STEP_MIN_SWING_S = 0.5
-"""s, shortest swing of a one-step motion."""
-
 STEP_MIN_SHIFT_S = 0.3
-"""s, shortest phase without a swing (the COM shift before a break, the settle after a
-creation)."""
+"""s, shortest phase of a one-step motion without a swing (the COM shift before a break,
+the settle after a creation) at speed 1: the motion blends into the validated state over
+``END_BLEND_S`` and the contacts must hold meanwhile."""
+
+STEP_CHECKS = 5
+"""Samples per phase of the dynamic check (Eq. 1) of a one-step motion."""
 
 STEP_MAX_ACCELERATION = 0.2
-"""m/s^2, peak COM acceleration of a one-step motion's rest-to-rest shift: low enough that
-the shift over one foot passes Eq. 1 everywhere (0.4 fails it on the Twister games)."""
+"""m/s^2, peak COM acceleration of a one-step motion's rest-to-rest shift at speed 1 (the
+fallback when 2PAC's curve fails Eq. 1): low enough that the shift over one foot passes
+Eq. 1 everywhere (0.4 fails it on the Twister games); ``speed`` squared scales it."""
 
 
 # --- timing of a plan (2PAC's sliding window, planner.motion.sequence) -----------------------

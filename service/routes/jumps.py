@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-import json
-from concurrent.futures import Future
+import time
 from typing import Any
 
 from anyio import to_thread
@@ -14,6 +13,10 @@ from planner.ballistic.planner import RoadmapStore
 from service import compute
 from service.deps import RegistryDep, SettingsDep
 from service.errors import not_found
+from service.interactive import BUSY_RESPONSES, run_interactive
+from service.job_runner import JobContext
+from service.jobs import Job
+from service.routes.jobs import CANCEL_RESPONSES, cancel_job, find_job, runner_of
 from service.routes.results import (
     RESULT_RESPONSES,
     FormatQuery,
@@ -31,44 +34,43 @@ _ERRORS: dict[int | str, dict[str, Any]] = {
     422: {"model": ErrorBody, "description": "invalid request"},
 }
 GRACE_S = 20.0
+MAX_ROADMAP_ID = 64
 
 
-def _jobs(request: Request) -> dict[str, Future[None]]:
-    jobs: dict[str, Future[None]] = request.app.state.roadmap_jobs
-    return jobs
-
-
-def _status(request: Request, store: RoadmapStore, rid: str) -> RoadmapStatus | None:
-    if store.exists(rid):
-        info = store.info(rid) or {}
-        return RoadmapStatus(
-            id=rid,
-            status="done",
-            progress=1.0,
-            nodes=int(info.get("nodes", 0)),
-            edges=int(info.get("edges", 0)),
-            seconds=float(info.get("build_seconds", 0.0)),
-            message="" if info.get("complete", True) else "build stopped before its budget",
-        )
-    path = compute.status_path(store.directory, rid)
-    if not path.exists():
+def _done(store: RoadmapStore, rid: str) -> RoadmapStatus | None:
+    """The status of a roadmap stored on disk, or None."""
+    if not store.exists(rid):
         return None
-    try:
-        status = json.loads(path.read_text())
-    except (OSError, ValueError):
-        status = {"status": "running", "progress": 0.0}
-    job = _jobs(request).get(rid)
-    if status.get("status") in ("queued", "running") and (job is None or job.done()):
-        # No live job behind it: the build was cut off (service restart or a dead worker).
-        status["status"] = "interrupted"
-        status["message"] = "the build stopped before finishing; POST the request again"
+    info = store.info(rid) or {}
     return RoadmapStatus(
         id=rid,
-        status=status.get("status", "running"),
-        progress=float(status.get("progress", 0.0)),
-        message=str(status.get("message", "")),
-        seconds=float(status.get("seconds", 0.0)),
+        status="done",
+        progress=1.0,
+        nodes=int(info.get("nodes", 0)),
+        edges=int(info.get("edges", 0)),
+        seconds=float(info.get("build_seconds", 0.0)),
+        message="" if info.get("complete", True) else "build stopped before its budget",
     )
+
+
+def _from_job(job: Job) -> RoadmapStatus:
+    result = job.result or {}
+    end = job.finished_at if job.finished_at is not None else time.time()
+    return RoadmapStatus(
+        id=job.id,
+        status=job.state,
+        progress=1.0 if job.state == "done" else job.progress,
+        nodes=int(result.get("nodes", 0)),
+        edges=int(result.get("edges", 0)),
+        message=job.message,
+        seconds=max(0.0, end - job.started_at) if job.started_at is not None else 0.0,
+    )
+
+
+def _roadmap_id(roadmap_id: str) -> str:
+    if not roadmap_id.isalnum() or len(roadmap_id) > MAX_ROADMAP_ID:
+        raise not_found("roadmap", roadmap_id, "roadmap_id")
+    return roadmap_id
 
 
 @router.post(
@@ -77,50 +79,82 @@ def _status(request: Request, store: RoadmapStore, rid: str) -> RoadmapStatus | 
     responses={
         **_ERRORS,
         200: {"model": RoadmapStatus, "description": "the roadmap is already built"},
-        202: {"model": RoadmapStatus, "description": "queued or building; poll its id"},
+        202: {
+            "model": RoadmapStatus,
+            "description": "queued or building; poll its Location",
+            "headers": {
+                "Location": {"description": "/v1/roadmaps/{id}", "schema": {"type": "string"}}
+            },
+        },
+        503: BUSY_RESPONSES[503],
     },
 )
 async def create_roadmap(
     body: RoadmapRequest, request: Request, registry: RegistryDep, settings: SettingsDep
 ) -> JSONResponse:
-    """Start building a jump roadmap (or find the finished one); poll its id for progress."""
+    """Start building a jump roadmap (or find the finished or running one); a job in the
+    background lane whose id is the roadmap's. Poll it; DELETE it to cancel the build."""
     rid = await to_thread.run_sync(compute.roadmap_id, body, registry)
     store = RoadmapStore(settings.roadmaps_path)
-    current = _status(request, store, rid)
-    if current is None or current.status in ("failed", "interrupted"):
-        compute.write_status(store.directory, rid, status="queued", progress=0.0, seconds=0.0)
-        job = request.app.state.pool.submit(compute.build_roadmap_job, body.model_dump_json(), rid)
-        _jobs(request)[rid] = job
-        current = _status(request, store, rid)
-    assert current is not None
-    code = 200 if current.status == "done" else 202
-    return JSONResponse(current.model_dump(mode="json"), status_code=code)
+    done = await to_thread.run_sync(_done, store, rid)
+    if done is not None:
+        return JSONResponse(done.model_dump(mode="json"), status_code=200)
+    runner = runner_of(request)
+    jobs_db = str(settings.jobs_db_path)
+
+    async def work(context: JobContext) -> dict[str, Any]:
+        return await runner.lane.run(
+            compute.build_roadmap_job,
+            body.model_dump_json(),
+            rid,
+            jobs_db,
+            ticket=context.ticket,
+            on_start=context.on_start,
+        )
+
+    job, _ = await runner.submit(rid, "roadmap", body.model_dump(mode="json"), work)
+    return JSONResponse(
+        _from_job(job).model_dump(mode="json"),
+        status_code=202,
+        headers={"Location": f"/v1/roadmaps/{rid}"},
+    )
 
 
 @router.get("/roadmaps/{roadmap_id}", responses={404: _ERRORS[404]})
 async def get_roadmap(roadmap_id: str, request: Request, settings: SettingsDep) -> RoadmapStatus:
-    """Status (queued, running, done, failed, interrupted), progress in [0, 1] and size."""
-    if not roadmap_id.isalnum() or len(roadmap_id) > 64:
-        raise not_found("roadmap", roadmap_id, "roadmap_id")
-    status = _status(request, RoadmapStore(settings.roadmaps_path), roadmap_id)
-    if status is None:
-        raise not_found("roadmap", roadmap_id, "roadmap_id")
-    return status
+    """Status (queued, running, done, failed, cancelled, interrupted), progress in [0, 1]
+    and size."""
+    rid = _roadmap_id(roadmap_id)
+    done = await to_thread.run_sync(_done, RoadmapStore(settings.roadmaps_path), rid)
+    if done is not None:
+        return done
+    return _from_job(await find_job(request, rid, "roadmap_id"))
+
+
+@router.delete("/roadmaps/{roadmap_id}", responses=CANCEL_RESPONSES)
+async def cancel_roadmap(roadmap_id: str, request: Request) -> RoadmapStatus:
+    """Cancel a queued or running build (its process is freed at once); answers its status,
+    now ``cancelled``. A finished roadmap is a 409."""
+    return _from_job(await cancel_job(request, _roadmap_id(roadmap_id), "roadmap_id"))
 
 
 @router.post(
     "/jumps",
     responses={
         **_ERRORS,
-        503: {"model": ErrorBody, "description": "a planning process died; retry"},
-        504: {"model": ErrorBody, "description": "the worker did not answer in time"},
+        **BUSY_RESPONSES,
     },
 )
 async def create_jumps(body: JumpRequest, request: Request) -> JumpResponse:
     """Plan a sequence of ballistic jumps (on a given roadmap, or one built within budget)."""
     seed = body.seed if body.seed is not None else draw_seed()
-    answer = await request.app.state.pool.run(
-        compute.run_jumps, body.model_dump_json(), seed, timeout_s=body.time_budget_s + GRACE_S
+    answer = await run_interactive(
+        request,
+        compute.run_jumps,
+        body.model_dump_json(),
+        seed,
+        budget_s=body.time_budget_s,
+        answer_within_s=body.time_budget_s + GRACE_S,
     )
     return JumpResponse.model_validate(await remember(request, "jump", body, seed, answer))
 

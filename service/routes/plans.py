@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+import uuid
 from typing import Any
 
 from fastapi import APIRouter, Request
+from fastapi.responses import JSONResponse
 
 from service import compute
 from service.deps import RegistryDep
+from service.interactive import BUSY_RESPONSES, run_interactive
+from service.job_runner import JobContext
+from service.routes.jobs import job_status, runner_of
 from service.routes.results import (
     RESULT_RESPONSES,
     FormatQuery,
@@ -15,31 +20,72 @@ from service.routes.results import (
     SceneQuery,
     draw_seed,
     remember,
+    remember_answer,
     stored_answer,
 )
-from service.schemas import ErrorBody, PlanRequest, PlanResponse
+from service.schemas import ErrorBody, JobStatus, PlanRequest, PlanResponse
 
 router = APIRouter(prefix="/v1", tags=["plans"])
 _ERRORS: dict[int | str, dict[str, Any]] = {
     404: {"model": ErrorBody, "description": "unknown character or scene"},
     422: {"model": ErrorBody, "description": "invalid request"},
-    503: {"model": ErrorBody, "description": "a planning process died; retry"},
-    504: {"model": ErrorBody, "description": "the worker did not answer in time"},
+    **BUSY_RESPONSES,
+    202: {
+        "model": JobStatus,
+        "description": 'with "async": true, the queued job; poll its Location',
+        "headers": {"Location": {"description": "/v1/jobs/{id}", "schema": {"type": "string"}}},
+    },
 }
 GRACE_S = 15.0  # beyond the plan's own budget: keyframes, start-up of a fresh worker
+BUDGET_FACTOR = 1.5  # a plan answers within this many budgets (plus the grace) or gets 504
 
 
-@router.post("/plans", responses=_ERRORS)
-async def create_plan(body: PlanRequest, request: Request) -> PlanResponse:
-    """Plan a multi-contact motion; the answer's ``status`` says how it went (always 200)."""
+def _answer_within_s(body: PlanRequest) -> float:
+    return BUDGET_FACTOR * body.time_budget_s + GRACE_S
+
+
+@router.post("/plans", responses=_ERRORS, response_model=PlanResponse)
+async def create_plan(body: PlanRequest, request: Request) -> Any:
+    """Plan a multi-contact motion; the answer's ``status`` says how it went (200). With
+    ``"async": true`` the plan is a job instead: 202 at once, ``Location: /v1/jobs/{id}``."""
     seed = body.seed if body.seed is not None else draw_seed()
-    answer = await request.app.state.pool.run(
+    if body.run_async:
+        return await _plan_job(body, seed, request)
+    answer = await run_interactive(
+        request,
         compute.run_plan,
         body.model_dump_json(),
         seed,
-        timeout_s=1.5 * body.time_budget_s + GRACE_S,
+        budget_s=body.time_budget_s,
+        answer_within_s=_answer_within_s(body),
     )
     return PlanResponse.model_validate(await remember(request, "plan", body, seed, answer))
+
+
+async def _plan_job(body: PlanRequest, seed: int, request: Request) -> JSONResponse:
+    runner = runner_of(request)
+    state = request.app.state
+
+    async def work(context: JobContext) -> dict[str, Any]:
+        answer = await runner.lane.run(
+            compute.run_plan,
+            body.model_dump_json(),
+            seed,
+            None,  # a job's budget counts from its start
+            ticket=context.ticket,
+            run_for_s=_answer_within_s(body),
+            on_start=context.on_start,
+        )
+        answer = await remember_answer(state, "plan", body, seed, answer)
+        rid = answer["id"]
+        return {"kind": "plan", "id": rid, "url": f"/v1/plans/{rid}", "status": answer["status"]}
+
+    request_json = {**body.model_dump(mode="json"), "seed": seed}
+    job, _ = await runner.submit(uuid.uuid4().hex, "plan", request_json, work)
+    location = f"/v1/jobs/{job.id}"
+    return JSONResponse(
+        job_status(job).model_dump(mode="json"), status_code=202, headers={"Location": location}
+    )
 
 
 @router.get("/plans/{plan_id}", responses=RESULT_RESPONSES, response_model=PlanResponse)

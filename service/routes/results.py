@@ -56,7 +56,23 @@ def store_of(request: Request) -> ResultStore:
 async def remember(
     request: Request, kind: Kind, body: BaseModel, seed: int, answer: dict[str, Any]
 ) -> dict[str, Any]:
-    """Give an answer its content id and store it; returns the answer with ``id`` set."""
+    """Give an answer its content id and store it; returns the answer with ``id`` set (and
+    its id, seed, status and timings on the request's log line)."""
+    answer = await remember_answer(request.app.state, kind, body, seed, answer)
+    annotate(
+        kind=kind,
+        result=answer["id"],
+        seed=seed,
+        answer_status=str(answer.get("status")),
+        timings=answer.get("timings"),
+    )
+    return answer
+
+
+async def remember_answer(
+    state: Any, kind: Kind, body: BaseModel, seed: int, answer: dict[str, Any]
+) -> dict[str, Any]:
+    """:func:`remember` outside a request (``state`` is the app's state): for jobs."""
     request_json = body.model_dump(mode="json")
     rid = result_id(kind, request_json, seed)
     answer = {**answer, "id": rid}
@@ -69,10 +85,9 @@ async def remember(
         "duration": answer["keyframes"][-1]["t"] if answer.get("keyframes") else 0.0,
     }
     stored = StoredResult(kind, rid, {**request_json, "seed": seed}, answer)
-    await to_thread.run_sync(store_of(request).put, stored, summary)
-    status = str(answer.get("status"))
-    request.app.state.metrics.observe_answer(kind, status)
-    annotate(kind=kind, result=rid, seed=seed, answer_status=status, timings=answer.get("timings"))
+    results: ResultStore = state.results
+    await to_thread.run_sync(results.put, stored, summary)
+    state.metrics.observe_answer(kind, str(answer.get("status")))
     return answer
 
 

@@ -16,8 +16,11 @@ from service import convert
 from service.deps import RegistryDep, SettingsDep
 from service.errors import ApiError, not_found
 from service.export import scene_glb_bytes
+from service.interactive import RETRY_HEADER
+from service.lanes import Gate
 from service.registry import Registry
 from service.schemas import ErrorBody, SceneDetail, SceneSummary
+from service.settings import Settings
 
 router = APIRouter(prefix="/v1/scenes", tags=["scenes"])
 _404: dict[int | str, dict[str, Any]] = {404: {"model": ErrorBody, "description": "unknown scene"}}
@@ -123,6 +126,11 @@ async def _read_body(request: Request, limit: int) -> bytes:
     responses={
         413: {"model": ErrorBody, "description": "body or triangle count over the limit"},
         422: {"model": ErrorBody, "description": "corrupt, empty or non-finite mesh"},
+        503: {
+            "model": ErrorBody,
+            "description": "too many uploads waiting (queue_full), with Retry-After",
+            "headers": RETRY_HEADER,
+        },
     },
     openapi_extra={
         "requestBody": {
@@ -141,7 +149,27 @@ async def upload_scene(
     name: Annotated[str, Query(max_length=MAX_NAME_LENGTH, description="scene label")] = "",
     y_up: Annotated[bool, Query(description="the file is y-up (converted to z-up)")] = False,
 ) -> SceneDetail:
-    """Upload a mesh as the raw request body; its id is a content hash of the mesh."""
+    """Upload a mesh as the raw request body; its id is a content hash of the mesh.
+
+    Uploads are parsed one at a time per service worker; a few wait in line (a 503 with
+    Retry-After past ``GECKO_UPLOAD_QUEUE``, before the body is read)."""
+    gate: Gate = request.app.state.lanes.uploads
+    ticket = gate.admit()
+    try:
+        return await _upload(request, registry, settings, gate, format, name, y_up)
+    finally:
+        ticket.release()
+
+
+async def _upload(
+    request: Request,
+    registry: Registry,
+    settings: Settings,
+    gate: Gate,
+    format: UploadFormat,
+    name: str,
+    y_up: bool,
+) -> SceneDetail:
     body = await _read_body(request, settings.max_upload_bytes)
     if not body:
         raise ApiError(422, "invalid_mesh", "the request body is empty", "body")
@@ -160,5 +188,9 @@ async def upload_scene(
             )
         return registry.add_uploaded_scene(mesh, name)
 
-    scene = await to_thread.run_sync(build)
+    await gate.take_slot()
+    try:
+        scene = await to_thread.run_sync(build)
+    finally:
+        gate.give_slot()
     return convert.scene_detail(scene, builtin=False)

@@ -8,6 +8,7 @@ from fastapi import APIRouter, Request
 
 from service import compute
 from service.deps import RegistryDep
+from service.interactive import BUSY_RESPONSES, run_interactive
 from service.routes.results import (
     RESULT_RESPONSES,
     FormatQuery,
@@ -23,8 +24,7 @@ router = APIRouter(prefix="/v1/twister", tags=["twister"])
 _ERRORS: dict[int | str, dict[str, Any]] = {
     404: {"model": ErrorBody, "description": "unknown character or scene"},
     422: {"model": ErrorBody, "description": "invalid request"},
-    503: {"model": ErrorBody, "description": "a planning process died; retry"},
-    504: {"model": ErrorBody, "description": "the worker did not answer in time"},
+    **BUSY_RESPONSES,
 }
 GRACE_S = 15.0
 
@@ -37,11 +37,13 @@ async def twister_step(body: TwisterStepRequest, request: Request) -> TwisterSte
     why (nothing reachable, not balanced, collision); the state is then unchanged.
     """
     seed = body.seed if body.seed is not None else draw_seed()
-    answer = await request.app.state.pool.run(
+    answer = await run_interactive(
+        request,
         compute.run_twister_step,
         body.model_dump_json(),
         seed,
-        timeout_s=body.time_budget_s + GRACE_S,
+        budget_s=body.time_budget_s,
+        answer_within_s=body.time_budget_s + GRACE_S,
     )
     answer = await remember(request, "step", body, seed, answer)
     return TwisterStepResponse.model_validate(answer)

@@ -7,22 +7,9 @@ import gzip
 from typing import Any
 
 import httpx
-from prometheus_client.parser import text_string_to_metric_families
 
-
-def _samples(url: str) -> dict[tuple[str, tuple[tuple[str, str], ...]], float]:
-    response = httpx.get(f"{url}/metrics", timeout=30)
-    assert response.status_code == 200
-    assert response.headers["content-type"].startswith("text/plain")
-    out = {}
-    for family in text_string_to_metric_families(response.text):
-        for sample in family.samples:
-            out[(sample.name, tuple(sorted(sample.labels.items())))] = sample.value
-    return out
-
-
-def _value(samples: dict[Any, float], name: str, **labels: str) -> float:
-    return samples.get((name, tuple(sorted(labels.items()))), 0.0)
+from tests.prometheus_text import metric_samples as _samples
+from tests.prometheus_text import sample_value as _value
 
 
 def test_metrics_parse_and_count_a_request(
@@ -51,8 +38,12 @@ def test_metrics_parse_and_count_a_request(
     assert _value(after, "gecko_worker_processes") == 1
     assert _value(after, "gecko_worker_tasks") == 0
     assert ("gecko_worker_pool_restarts_total", ()) in after
-    for state in ("queued", "running", "finished"):
-        assert ("gecko_roadmap_jobs", (("state", state),)) in after
+    for state in ("queued", "running", "done", "failed", "cancelled", "interrupted"):
+        assert ("gecko_jobs", (("kind", "roadmap"), ("state", state))) in after
+    for lane in ("interactive", "jobs", "uploads"):
+        assert _value(after, "gecko_queue_depth", lane=lane) == 0
+        assert _value(after, "gecko_lane_running", lane=lane) == 0
+    assert _value(after, "gecko_queue_limit", lane="interactive") == 16
     assert _value(after, "gecko_http_requests_in_progress") == 1  # the scrape itself
 
 

@@ -92,6 +92,16 @@ async def test_same_seed_same_step(client: httpx.AsyncClient) -> None:
         ({"action": {"kind": "auto"}, "stand_at": [0, 0, 0], "yaw": 9.0}, 422, "yaw"),
         ({"action": {"kind": "break", "limb": "tail"}, "stand_at": [0, 0, 0]}, 422, "action.limb"),
         (
+            {"action": {"kind": "auto"}, "stand_at": [0, 0, 0], "options": {"speed": 5}},
+            422,
+            "options.speed",
+        ),
+        (
+            {"action": {"kind": "auto"}, "stand_at": [0, 0, 0], "options": {"lookahead": 0.2}},
+            422,
+            "options.lookahead",
+        ),
+        (
             {"action": {"kind": "auto"}, "stand_at": [0, 0, 0], "time_budget_s": 100},
             422,
             "time_budget_s",
@@ -124,3 +134,14 @@ async def test_bad_requests(
     response = await client.post("/v1/twister/step", json=request, timeout=120)
     assert response.status_code == status, response.text
     assert response.json()["error"]["field"].startswith(field)
+
+
+async def test_speed_times_the_step(client: httpx.AsyncClient) -> None:
+    """``options.speed`` divides a step's durations, as for a plan; the report says it."""
+    move = {"stand_at": [0.0, 0.0, 0.0], "action": {"kind": "break", "limb": "lf_foot"}}
+    nominal = await _step(client, **move)
+    fast = await _step(client, **move, options={"speed": 2.0})
+    assert nominal["status"] == fast["status"] == "SOLVED"
+    assert fast["report"]["speed"] == 2.0 and nominal["report"]["speed"] == 1.0
+    assert fast["phases"][-1]["t1"] < nominal["phases"][-1]["t1"]
+    assert fast["state"] == nominal["state"]  # the same move, only faster

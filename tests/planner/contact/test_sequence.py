@@ -7,7 +7,16 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from planner.contact.sequence import SequenceParams, _Guide, gait_order
+from planner.contact.sequence import (
+    ADVANCE_SHARE,
+    ROUGH_ADVANCE,
+    ROUGH_LOOKAHEAD,
+    STRIDE_SHARE,
+    SequenceParams,
+    _Guide,
+    gait_lengths,
+    gait_order,
+)
 
 
 def _line(n: int, step: float) -> np.ndarray:
@@ -59,3 +68,20 @@ def test_guide_progress_is_the_nearest_sample_and_never_far_behind(x: float, y: 
     s = guide.progress(np.array([x, y, 0.9]), 0.0)
     assert abs(s - x) <= 0.025 + 1e-9
     assert guide.progress(np.array([0.0, 0.0, 0.9]), 0.8) >= 0.5 - 1e-9
+
+
+def test_gait_lengths_scale_with_the_legs_unless_given() -> None:
+    """Open-ground strides are a share of the leg length, rough-ground ones fixed and never
+    longer; a look-ahead or advance given by the caller is used on any ground."""
+    legs = {"left": np.array([0.0, 0.1, -1.0]), "right": np.array([0.0, -0.1, -1.0])}
+    gait = gait_lengths(legs, ["left", "right"], SequenceParams())
+    assert gait.open_lookahead == pytest.approx(STRIDE_SHARE * np.hypot(0.1, 1.0))
+    assert gait.open_advance == pytest.approx(ADVANCE_SHARE * gait.open_lookahead)
+    assert gait.of(False) == (ROUGH_LOOKAHEAD, ROUGH_ADVANCE)
+    short = {k: 0.2 * v for k, v in legs.items()}
+    small = gait_lengths(short, ["left", "right"], SequenceParams())
+    assert (
+        small.rough_lookahead <= small.open_lookahead and small.rough_advance <= small.open_advance
+    )
+    given = gait_lengths(legs, ["left", "right"], SequenceParams(lookahead=0.3, advance=0.2))
+    assert given.of(True) == given.of(False) == (0.3, 0.2)

@@ -17,6 +17,8 @@ from planner.contact.checks import (
 )
 from planner.contact.generation import break_contact, create_contact
 from planner.contact.step_motion import step_motion
+from planner.motion import tuning
+from planner.motion.sequence import Timing
 from planner.poses import pose_matrix
 from planner.shapes import Box
 from tests.planner.contact.twister_game import context, start_state
@@ -92,3 +94,47 @@ def test_transition_point_moves_off_an_obstacle() -> None:
     for k in motion.keyframes:
         phase = motion.phases[0] if k.t < motion.phases[0].t1 else motion.phases[1]
         assert hold_error(ctx, k.q, phase.contacts) <= 0.01
+
+
+def test_step_timing_follows_the_speed_and_the_users_attractor() -> None:
+    """A step is timed like a plan: the swing gets its distance at the swing speed (at least
+    the shortest swing), ``speed`` divides the durations, and an attractor for transition 0
+    is honoured when balanced and reachable, refused with a reason otherwise."""
+    ctx = context("humanoid", "twister")
+    state = start_state(ctx, (0.175, 0.0), FEET)
+    released = break_contact(ctx, state, "right_foot")
+    assert released.ok
+    placed = create_contact(ctx, released.state, "right_foot", rng=np.random.default_rng(2))
+    assert placed.ok
+    before, after = released.state, placed.state
+    nominal = step_motion(ctx, before, after, "right_foot")
+    fast = step_motion(ctx, before, after, "right_foot", timing=Timing(speed=2.0))
+    swing = nominal.phases[0].t1 - nominal.phases[0].t0
+    assert swing >= tuning.MIN_SWING_S - 1e-9
+    fast_swing = fast.phases[0].t1 - fast.phases[0].t0
+    assert fast_swing < swing and fast_swing >= tuning.MIN_SWING_S / 2.0 - 1e-9
+    assert nominal.report["com_method"] == "rest_to_rest" and fast.report["speed"] == 2.0
+    for motion in (nominal, fast):
+        assert motion.report["colliding_keyframes"] == 0
+        assert all(r["fraction_valid"] == 1.0 for r in motion.report["phases"])
+    # the COM a little toward the standing foot is balanced on it and reachable for both
+    c0, c1 = com_of(ctx, before.q), com_of(ctx, after.q)
+    inside = 0.7 * c1 + 0.3 * c0
+    honoured = step_motion(
+        ctx, before, after, "right_foot", timing=Timing(attractors=((0, inside),))
+    )
+    assert honoured.report["attractors"] == [{"transition": 0, "honoured": True}]
+    at_change = honoured.phases[0].t1
+    curve_end = next(s for s in honoured.com if abs(s.t1 - at_change) < 1e-9)
+    np.testing.assert_allclose(curve_end.control_points[-1], inside, atol=1e-9)
+    far = c1 + np.array([0.0, -0.5, 0.0])  # over the lifted foot's side: not balanced
+    refused = step_motion(ctx, before, after, "right_foot", timing=Timing(attractors=((0, far),)))
+    (entry,) = refused.report["attractors"]
+    assert entry["honoured"] is False and "equilibrium" in str(entry["reason"])
+    np.testing.assert_allclose(
+        next(s for s in refused.com if abs(s.t1 - refused.phases[0].t1) < 1e-9).control_points[-1],
+        c1,
+        atol=1e-9,
+    )
+    wrong = step_motion(ctx, before, after, "right_foot", timing=Timing(attractors=((1, c1),)))
+    assert "0 to 0" in str(wrong.report["attractors"][0]["reason"])

@@ -231,3 +231,20 @@ def test_same_seed_same_plan(planned) -> None:  # type: ignore[no-untyped-def]
     for a, b in zip(result.value.states, again.value.states, strict=True):
         assert np.array_equal(a.q, b.q)
     assert len(again.value.motion.keyframes) == len(result.value.motion.keyframes)
+
+
+@pytest.mark.parametrize("name", ["flat_walk_humanoid", "hpp_ground_talos"])
+def test_strides_use_the_legs_reach_on_open_ground(name: str) -> None:
+    """On flat open ground the bipeds stride at least 0.4 m (issue 13): each foot moves that
+    far between its consecutive contacts, at the median."""
+    result, _, _, _ = _plan(name)
+    assert result.status is PlanStatus.SOLVED, result.message
+    last: dict[str, np.ndarray] = {}
+    strides = []
+    for state in result.value.states:
+        for contact in state.contacts:
+            previous = last.get(contact.limb)
+            if previous is not None and float(np.linalg.norm(contact.position - previous)) > 1e-6:
+                strides.append(float(np.linalg.norm(contact.position - previous)))
+            last[contact.limb] = contact.position
+    assert strides and float(np.median(strides)) >= 0.4, strides

@@ -1,0 +1,331 @@
+"""Admission control: bounded lanes of work, each with its own slots and its own queue.
+
+A :class:`Gate` admits at most ``slots + queue`` pieces of work at once: ``slots`` run, the
+others wait in arrival order, and one more is refused at once with a 503 that carries
+``Retry-After`` and names the limit. A piece of work may say by when it must have started
+(``start_by``, a :func:`time.monotonic` time: a request's budget counts from its arrival);
+one still waiting then is refused with a 503 too, without having cost anything.
+
+A :class:`Lane` is a gate whose slots are worker processes (:func:`service.workers.
+serve_tasks`), one task at a time each. A task that must stop (its deadline passed, its
+client went away, its job was cancelled) stops for real: its process is killed, which frees
+the slot at once, and a fresh process takes its place on the next task. A process that dies
+fails only the task it ran. The service has three lanes per service worker (``Lanes``):
+interactive work (plans, Twister steps, jumps), background jobs (roadmap builds, asynchronous
+plans) and uploads (a gate only: uploads are parsed in a thread).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import multiprocessing
+import os
+import time
+from collections import deque
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from multiprocessing.connection import Connection
+from multiprocessing.process import BaseProcess
+from typing import Any, TypeVar, cast
+
+from service.errors import ApiError
+from service.metrics import Metrics
+from service.settings import RETRY_AFTER_S, UPLOAD_CONCURRENCY, Settings
+from service.workers import serve_tasks
+
+T = TypeVar("T")
+log = logging.getLogger("gecko.lanes")
+JOIN_KILLED_S = 5.0  # s to wait for a killed process to be reaped
+
+
+class Ticket:
+    """An admitted piece of work's place in its gate, held until :meth:`release`."""
+
+    def __init__(self, gate: Gate) -> None:
+        self._gate: Gate | None = gate
+
+    def release(self) -> None:
+        """Leave the gate (idempotent)."""
+        if self._gate is not None:
+            self._gate._leave()
+            self._gate = None
+
+
+class Gate:
+    """At most ``slots`` pieces of work at once, ``queue`` more waiting, the rest refused."""
+
+    def __init__(
+        self, name: str, *, slots: int, queue: int, setting: str, metrics: Metrics
+    ) -> None:
+        self.name = name
+        self.slots = slots
+        self.queue = queue
+        self.setting = setting  # the environment variable of the queue's bound (for messages)
+        self._metrics = metrics
+        self._admitted = 0
+        self._free = slots
+        self._waiters: deque[asyncio.Future[None]] = deque()
+
+    @property
+    def running(self) -> int:
+        """Pieces of work holding a slot now."""
+        return self.slots - self._free
+
+    @property
+    def waiting(self) -> int:
+        """Admitted pieces of work not holding a slot yet (the queue's depth)."""
+        return self._admitted - self.running
+
+    def _refuse(self, code: str, message: str) -> ApiError:
+        self._metrics.refused.labels(self.name, code).inc()
+        retry = RETRY_AFTER_S[self.name]
+        return ApiError(
+            503, code, f"{message}; retry in {retry} s", None, {"Retry-After": str(retry)}
+        )
+
+    def admit(self) -> Ticket:
+        """A place in the gate, or a 503 (``queue_full``) when every slot and place is taken."""
+        if self._admitted >= self.slots + self.queue:
+            message = (
+                f"the {self.name} queue is full ({self.running} running, {self.waiting} "
+                f"waiting; limit {self.setting}={self.queue})"
+            )
+            raise self._refuse("queue_full", message)
+        self._admitted += 1
+        return Ticket(self)
+
+    def _leave(self) -> None:
+        self._admitted -= 1
+
+    async def take_slot(self, start_by: float | None = None) -> None:
+        """Wait in line for a slot; a 503 (``queue_timeout``) if ``start_by`` (monotonic s)
+        passes first. The caller gives the slot back with :meth:`give_slot`."""
+        if self._free > 0 and not self._waiters:
+            self._free -= 1
+            return
+        waiter = asyncio.get_running_loop().create_future()
+        self._waiters.append(waiter)
+        timeout = None if start_by is None else start_by - time.monotonic()
+        try:
+            async with asyncio.timeout(timeout):
+                await waiter
+        except BaseException as exc:
+            if waiter.done() and not waiter.cancelled():
+                self.give_slot()  # handed over just as we stopped waiting: pass it on
+            else:
+                waiter.cancel()
+                if waiter in self._waiters:
+                    self._waiters.remove(waiter)
+            if isinstance(exc, TimeoutError):
+                message = f"no {self.name} slot came free within the request's time budget"
+                raise self._refuse("queue_timeout", message) from exc
+            raise
+
+    def give_slot(self) -> None:
+        """Hand a slot to the first in line, or free it."""
+        while self._waiters:
+            waiter = self._waiters.popleft()
+            if not waiter.done():
+                waiter.set_result(None)
+                return
+        self._free += 1
+
+
+@dataclass(eq=False, slots=True)  # compared and hashed by identity
+class _Worker:
+    process: BaseProcess
+    connection: Connection
+    tasks: int = field(default=0)
+
+
+class Lane(Gate):
+    """A gate whose slots are worker processes running one task at a time."""
+
+    def __init__(
+        self,
+        name: str,
+        *,
+        processes: int,
+        queue: int,
+        setting: str,
+        settings: Settings,
+        metrics: Metrics,
+    ) -> None:
+        super().__init__(name, slots=processes, queue=queue, setting=setting, metrics=metrics)
+        # One BLAS thread per worker: the matrices are small, and workers share the cores.
+        for variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+            os.environ.setdefault(variable, "1")
+        self._settings_json = settings.model_dump_json()
+        self._context = multiprocessing.get_context("spawn")
+        self._idle: list[_Worker] = []
+        self._busy: set[_Worker] = set()
+        # One thread per process waits for its answer (a pipe read), so the loop never does.
+        self._readers = ThreadPoolExecutor(processes, thread_name_prefix=f"gecko-{name}")
+        self._closed = False
+
+    def pids(self) -> dict[str, list[int]]:
+        """Process ids of the lane's live workers: ``{"idle": [...], "busy": [...]}``."""
+        return {
+            "idle": [w.process.pid for w in self._idle if w.process.pid is not None],
+            "busy": [w.process.pid for w in self._busy if w.process.pid is not None],
+        }
+
+    def _spawn(self) -> _Worker:
+        ours, theirs = self._context.Pipe(duplex=True)
+        process = self._context.Process(
+            target=serve_tasks,
+            args=(theirs, self._settings_json),
+            name=f"gecko-{self.name}",
+            daemon=True,
+        )
+        process.start()
+        theirs.close()  # only the child holds it now: its death reads as EOF on ours
+        return _Worker(process, ours)
+
+    def _take_worker(self) -> _Worker:
+        while self._idle:
+            worker = self._idle.pop()
+            # An idle process never has anything to say: a readable pipe is its end (EOF).
+            if worker.process.is_alive() and not worker.connection.poll():
+                return worker
+            log.error("an idle %s process died (exit code %s)", self.name, worker.process.exitcode)
+            self._metrics.worker_restarts.inc()
+            self._discard(worker)
+        return self._spawn()
+
+    def _discard(self, worker: _Worker, *, kill: bool = False) -> None:
+        if kill and worker.process.is_alive():
+            worker.process.kill()
+        worker.connection.close()
+        # Reap it off the loop: a killed process exits at once, a dead one already has.
+        try:
+            self._readers.submit(worker.process.join, JOIN_KILLED_S)
+        except RuntimeError:  # shutting down: the readers are gone
+            worker.process.join(0.1)
+
+    async def run(
+        self,
+        function: Callable[..., T],
+        *args: Any,
+        ticket: Ticket | None = None,
+        start_by: float | None = None,
+        finish_by: float | None = None,
+        run_for_s: float | None = None,
+        on_start: Callable[[], None] | None = None,
+    ) -> T:
+        """``function(*args)`` in a worker process of this lane.
+
+        ``ticket`` is the place :meth:`admit` gave (taken now when None: a 503 when full);
+        ``start_by`` (monotonic s) the latest start (a 503 past it); ``finish_by`` (monotonic
+        s) or ``run_for_s`` (s from the start) the latest answer (a 504 past it, the process
+        killed). ``on_start`` is called when a process takes the task. Cancelling the
+        calling task kills the process running it. A process that dies under the task is a
+        503 ``worker_lost``; exceptions the function raises are raised here.
+        """
+        ticket = ticket or self.admit()
+        try:
+            await self.take_slot(start_by)
+            try:
+                if on_start is not None:
+                    on_start()
+                if run_for_s is not None:
+                    finish_by = time.monotonic() + run_for_s
+                return await self._call(function, args, finish_by)
+            finally:
+                self.give_slot()
+        finally:
+            ticket.release()
+
+    async def _call(
+        self, function: Callable[..., T], args: tuple[Any, ...], finish_by: float | None
+    ) -> T:
+        if self._closed:
+            raise ApiError(503, "shutting_down", "the service is stopping; retry", None)
+        worker = self._take_worker()
+        try:
+            worker.connection.send((function, args))
+        except (BrokenPipeError, OSError):  # died since: one fresh process, once
+            self._metrics.worker_restarts.inc()
+            self._discard(worker)
+            worker = self._spawn()
+            worker.connection.send((function, args))
+        self._busy.add(worker)
+        loop = asyncio.get_running_loop()
+        answer = loop.run_in_executor(self._readers, worker.connection.recv)
+        answer.add_done_callback(_retrieve)  # a killed process's EOF is expected, not news
+        healthy = False
+        try:
+            timeout = None if finish_by is None else finish_by - time.monotonic()
+            async with asyncio.timeout(timeout):
+                kind, value = await asyncio.shield(answer)
+            healthy = True
+        except TimeoutError as exc:
+            self._metrics.cancelled.labels(self.name, "timeout").inc()
+            raise ApiError(504, "timeout", "no answer within the time budget", None) from exc
+        except asyncio.CancelledError:
+            self._metrics.cancelled.labels(self.name, "cancelled").inc()
+            raise
+        except (EOFError, OSError) as exc:
+            log.error("a %s process died under its task: %r", self.name, exc)
+            self._metrics.worker_restarts.inc()
+            raise ApiError(503, "worker_lost", "a planning process died; retry", None) from exc
+        finally:
+            self._busy.discard(worker)
+            if healthy:
+                worker.tasks += 1
+                self._idle.append(worker)
+            else:
+                self._discard(worker, kill=True)
+        if kind == "error":
+            raise cast(BaseException, value)
+        return cast(T, value)
+
+    def shutdown(self) -> None:
+        """Stop every process of the lane (running tasks fail with ``worker_lost``)."""
+        self._closed = True
+        for worker in [*self._idle, *self._busy]:
+            self._discard(worker, kill=True)
+        self._idle.clear()
+        self._readers.shutdown(wait=False, cancel_futures=False)
+
+
+def _retrieve(future: asyncio.Future[Any]) -> None:
+    if not future.cancelled():
+        future.exception()
+
+
+class Lanes:
+    """The lanes of one service worker: interactive work, background jobs, uploads."""
+
+    def __init__(self, settings: Settings, metrics: Metrics) -> None:
+        self.interactive = Lane(
+            "interactive",
+            processes=settings.worker_processes,
+            queue=settings.interactive_queue,
+            setting="GECKO_INTERACTIVE_QUEUE",
+            settings=settings,
+            metrics=metrics,
+        )
+        self.jobs = Lane(
+            "jobs",
+            processes=settings.job_processes,
+            queue=settings.job_queue,
+            setting="GECKO_JOB_QUEUE",
+            settings=settings,
+            metrics=metrics,
+        )
+        self.uploads = Gate(
+            "uploads",
+            slots=UPLOAD_CONCURRENCY,
+            queue=settings.upload_queue,
+            setting="GECKO_UPLOAD_QUEUE",
+            metrics=metrics,
+        )
+        metrics.worker_processes.set(settings.worker_processes)
+        metrics.watch_gates(lambda: (self.interactive, self.jobs, self.uploads))
+
+    def shutdown(self) -> None:
+        self.interactive.shutdown()
+        self.jobs.shutdown()
