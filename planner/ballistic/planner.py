@@ -94,7 +94,7 @@ class JumpParams:
     stand_radius: float = 0.5
     roadmap_seed: int = 0
     limb_collisions: bool = True
-    build_share: float = 0.7
+    build_share: float = 0.5
 
     def __post_init__(self) -> None:
         if self.n_nodes < 1 or not self.rate > 0 or not 0.0 < self.phase_fraction <= 0.5:
