@@ -176,10 +176,10 @@ TABLE1 = (
 
 
 def bench_scenarios(quick: bool) -> None:
-    from planner.ballistic.keyframes import JumpAnimator
     from planner.ballistic.nodes import ReducedModel, SceneSampler
     from planner.ballistic.planner import plan_jumps
     from planner.ballistic.roadmap import build_roadmap as build
+    from planner.ballistic.stance import NodeStancer
     from tests.scenarios.jumps.scenario import scenarios
 
     print("\n== scenarios (real scenes and characters; tests/scenarios/jumps) ==")
@@ -244,12 +244,12 @@ def bench_scenarios(quick: bool) -> None:
         kf_ms = 1e3 * statistics.median(p.timings["keyframes"] for p in plans_ok) / n_jumps
         per_jump = 1e3 * statistics.median(p.timings["total"] for p in plans_ok) / n_jumps
         # Contact generation: one stance (all contacts of a node) from scratch.
-        animator = JumpAnimator(character, data)
+        stancer = NodeStancer(character, data)
         nodes = roadmap.nodes
         k = min(len(nodes), 20)
         t0 = time.perf_counter()
         for i in range(k):
-            animator.stance(
+            stancer.stance(
                 nodes.positions[i],
                 nodes.orientations[i],
                 nodes.contacts["active"][i],

@@ -290,9 +290,15 @@ def bench_twister(seeds: int) -> None:
 
 
 def bench_jumps(seeds: int) -> None:
+    """Jump scenarios through the auditor, then per scenario the jump figures: keyframe COM
+    against each jump's parabola in flight (max, mm; the jump's takeoff position and
+    velocity taken as the COM's), the peak finite-difference COM acceleration of the
+    keyframes within 0.1 s of a takeoff and of a landing (m/s^2), and the push and landing
+    accelerations the plan asked for (max)."""
     from planner.ballistic.planner import plan_jumps
     from tests.scenarios.jumps.scenario import scenarios
 
+    extra: list[str] = []
     for scenario in scenarios():
         loaded = scenario.load()
         label = f"jump {scenario.name}"
@@ -302,6 +308,8 @@ def bench_jumps(seeds: int) -> None:
         scene, character, data = loaded
         tally = Tally()
         wall = time.perf_counter()
+        figures: dict[str, list[float]] = {"parabola": [], "takeoff": [], "landing": []}
+        planned: list[float] = []
         for i in range(seeds):
             start = time.perf_counter()
             result = plan_jumps(
@@ -322,17 +330,68 @@ def bench_jumps(seeds: int) -> None:
             duration = _duration(plan.keyframes)
             if duration > 0:
                 tally.cost.append(seconds / duration)
-            flights = [(j.contact_break, j.contact_create) for j in plan.jumps]
-            _audit(
-                tally,
-                character.id,
-                scene,
-                plan.keyframes,
-                _jump_phases(plan),
-                (),
-                flights,
+            # old answers have no push/landing times: their flights are break..create
+            flights = [
+                (getattr(j, "push_start", j.contact_break), getattr(j, "rest", j.contact_create))
+                for j in plan.jumps
+            ]
+            phases = getattr(plan, "phases", ()) or _jump_phases(plan)
+            start = time.perf_counter()
+            audit = audit_from_domain(
+                character.id, scene, plan.keyframes, phases, getattr(plan, "com", ()), flights
             )
+            tally.audit_s.append(time.perf_counter() - start)
+            tally.add(audit)
+            _jump_figures(plan, audit, figures, planned)
         print(f"{tally.row(label)}  [{time.perf_counter() - wall:.0f} s]", flush=True)
+
+        def top(values: list[float]) -> str:
+            return f"{max(values):8.1f}" if values else f"{'-':>8s}"
+
+        extra.append(
+            f"{label:32s} {top([1e3 * v for v in figures['parabola']])} "
+            f"{top(figures['takeoff'])} {top(figures['landing'])} {top(planned)}"
+        )
+    print(
+        f"\n{'jump scenario':32s} {'par. mm':>8s} {'a takeoff':>8s} {'a landing':>8s} "
+        f"{'planned':>8s}  (max over seeds; COM accelerations m/s^2, 3 g = 29.4)"
+    )
+    for line in extra:
+        print(line)
+
+
+def _jump_figures(
+    plan: Any, audit: MotionAudit, figures: dict[str, list[float]], planned: list[float]
+) -> None:
+    """Append a jump plan's parabola error (m), peak COM accelerations near takeoffs and
+    landings (m/s^2, finite differences of the auditor's keyframe COMs) and the planned
+    push and landing accelerations (m/s^2)."""
+    gravity = np.array([0.0, 0.0, -9.81])
+    times, coms = audit.times, audit.coms
+    if len(times) < 3:
+        return
+    steps = np.diff(times)
+    accel = np.linalg.norm(coms[2:] - 2.0 * coms[1:-1] + coms[:-2], axis=1) / (
+        steps[1:] * steps[:-1]
+    )
+    middle = times[1:-1]
+    for jump in plan.jumps:
+        inside = (times >= jump.contact_break - 1e-9) & (times <= jump.contact_create + 1e-9)
+        tau = times[inside] - jump.contact_break
+        expect = (
+            jump.takeoff.position
+            + np.outer(tau, jump.takeoff.velocity)
+            + 0.5 * np.outer(tau**2, gravity)
+        )
+        if inside.any():
+            figures["parabola"].append(float(np.linalg.norm(coms[inside] - expect, axis=1).max()))
+        for key, when in (("takeoff", jump.contact_break), ("landing", jump.contact_create)):
+            near = np.abs(middle - when) <= 0.1
+            if near.any():
+                figures[key].append(float(accel[near].max()))
+        for name in ("push_acceleration", "landing_acceleration"):
+            if hasattr(jump, name):
+                planned.append(float(np.linalg.norm(getattr(jump, name))))
 
 
 @dataclass(frozen=True)

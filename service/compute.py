@@ -375,10 +375,18 @@ def run_jumps(request_json: str, seed: int, deadline: float | None = None) -> di
                 landing=_jump_end(j.landing),
                 apex=convert.vec3(j.apex),
                 duration=float(j.duration),
+                t_start=float(j.t_start),
+                push_start=float(j.push_start),
+                takeoff_time=float(j.contact_break),
+                landing_time=float(j.contact_create),
+                rest_time=float(j.rest),
             )
             for j in (plan.jumps if plan else ())
         ],
         keyframes=[convert.keyframe_out(character, k) for k in (plan.keyframes if plan else ())],
+        phases=[convert.phase_out(p) for p in (plan.phases if plan else ())],
+        com=[convert.com_segment_out(s) for s in (plan.com if plan else ())],
+        report=plan.report.as_dict() if plan and plan.report else {},
         timings=dict(plan.timings) if plan else {},
     )
     return response.model_dump(mode="json")

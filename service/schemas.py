@@ -419,16 +419,25 @@ class JumpContactOut(BaseModel):
 
 
 class JumpEndOut(BaseModel):
-    position: Vector3
-    velocity: Vector3
+    position: Vector3 = Field(
+        description="the centre of mass (not the root), m, world frame, when the contacts "
+        "break (takeoff) or are made (landing): the flight is the COM's parabola "
+        "position + velocity t + g t^2 / 2"
+    )
+    velocity: Vector3 = Field(description="the centre of mass's velocity, m/s")
     contacts: list[JumpContactOut]
 
 
 class JumpOut(BaseModel):
     takeoff: JumpEndOut
     landing: JumpEndOut
-    apex: Vector3
-    duration: float
+    apex: Vector3 = Field(description="the centre of mass's highest point, m")
+    duration: float = Field(description="flight time, s")
+    t_start: float = Field(default=0.0, description="s: the crouch before the push begins")
+    push_start: float = Field(default=0.0, description="s: the COM leaves rest (the push)")
+    takeoff_time: float = Field(default=0.0, description="s: the contacts break")
+    landing_time: float = Field(default=0.0, description="s: the landing contacts are made")
+    rest_time: float = Field(default=0.0, description="s: the landing has stopped the COM")
 
 
 class JumpRequest(BaseModel):
@@ -470,6 +479,13 @@ class JumpResponse(BaseModel):
     seed: int
     jumps: list[JumpOut]
     keyframes: list[KeyframeOut]
+    phases: list[PhaseOut] = Field(default_factory=list, description="flights hold no contact")
+    com: list[ComSegmentOut] = Field(
+        default_factory=list, description="COM curve; the flights are the jumps' parabolas"
+    )
+    report: dict[str, object] = Field(
+        default_factory=dict, description="the whole-body motion builder's report, as plans'"
+    )
     roadmap: str | None = None
     message: str = ""
     timings: dict[str, float]

@@ -150,7 +150,8 @@ class MotionAudit:
     (m). Arrays: ``penetration`` (frames,) the deepest non-stance link, ``stance_error``
     (frames,) the worst stance effector distance (NaN: no stance matched), ``self_penetration``
     (frames,), ``com_error`` (frames,) (NaN: no COM piece at that time), ``tilt_deg``
-    (frames,), ``joint_speed`` (pairs,) the fastest joint, ``root_step`` (pairs,) m.
+    (frames,), ``joint_speed`` (pairs,) the fastest joint, ``root_step`` (pairs,) m,
+    ``coms`` (frames, 3) m the keyframes' COM (world).
     """
 
     frames: int
@@ -190,6 +191,7 @@ class MotionAudit:
     joint_speed: FloatArray
     root_step: FloatArray
     notes: tuple[str, ...] = field(default=())
+    coms: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
 
     @property
     def penetrating_fraction(self) -> float:
@@ -1047,6 +1049,7 @@ def audit_motion(
         joint_speed=joint_speed,
         root_step=root_step,
         notes=tuple(notes),
+        coms=coms,
     )
 
 

@@ -5,7 +5,8 @@ bounded-gap sampling, trunk collision and the collision-free search over t), ``c
 (centroidal cone from contacts), ``roadmap`` (directed jump roadmap: build, persist, query),
 ``synthetic`` (horizontal-platform sampler and sphere-trunk/box collision, for tests and
 benchmarks), ``nodes`` (reduced model on a real scene: trunk collision, contact estimate, node
-sampling), ``keyframes`` (whole-body jump keyframes) and ``planner`` (``plan_jumps`` and the
+sampling), ``stance`` (whole-body contact configurations at nodes) and ``planner``
+(``plan_jumps``, whose keyframes come from ``planner.motion.jump``, and the
 ``RoadmapStore``: the domain API of the jump endpoints).
 """
 

@@ -3,8 +3,13 @@
 
 ``plan_jumps`` turns a start and a goal (root poses or ``stand_at`` points) into a sequence of
 parabolic jumps with whole-body keyframes: reduced model (``nodes``), roadmap (given, loaded
-from a ``RoadmapStore`` or built within the termination budget), query, then keyframes
-(``keyframes``). ``RoadmapStore`` builds, persists (atomically) and reloads roadmaps by id.
+from a ``RoadmapStore`` or built within the termination budget), query, contact
+configurations at the nodes (``stance``), then the whole-body motion (takeoff push, flight,
+landing per jump) from the one motion builder (``planner.motion.jump``). The roadmap plans
+the root's parabolas; the answer's jumps are the COM's: the same parabola translated by the
+COM's offset from the root in the takeoff stance, so velocities, flight times and cone
+checks are unchanged. ``RoadmapStore`` builds, persists (atomically) and reloads roadmaps
+by id.
 """
 
 from __future__ import annotations
@@ -23,7 +28,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.ballistic.cones import centroidal_cones
-from planner.ballistic.keyframes import JumpAnimator, LimbCollider, Stance
 from planner.ballistic.nodes import ReducedModel, SceneSampler
 from planner.ballistic.roadmap import (
     GOAL,
@@ -34,9 +38,15 @@ from planner.ballistic.roadmap import (
     RoadmapParams,
     build_roadmap,
 )
+from planner.ballistic.stance import NodeStancer, Stance
 from planner.ballistic.steering import jump_at
 from planner.character import Character
-from planner.motion import Keyframe
+from planner.contact.body import contact_points
+from planner.contact.state import ContactState, LimbContact
+from planner.kinematics import com_position
+from planner.motion import ComSegment, Keyframe, Phase
+from planner.motion.builder import BuiltMotion, MotionReport
+from planner.motion.jump import JumpLeg, JumpTiming, build_jumps
 from planner.offline import OfflineData
 from planner.result import PlanResult, PlanStatus
 from planner.scene import Scene
@@ -64,10 +74,10 @@ class JumpParams:
     by the planner). n_nodes : roadmap size when one is built. min_limbs : contacts a node needs
     (None: half the limbs, rounded up). lean : Lean surfaces count as contact surfaces. mu :
     friction of every contact (None: the limbs' own). rate : keyframes per second.
-    phase_fraction : longest contact phase as a fraction of the flight. stand_radius : m, how
+    phase_fraction, limb_collisions : read by nothing since the motion builder animates
+    jumps (kept so that stored roadmaps' parameters still load). stand_radius : m, how
     far from a ``stand_at`` point its surface point may be. roadmap_seed : seed of roadmaps
-    built through a ``RoadmapStore`` by ``plan_jumps``. limb_collisions : check the limbs of
-    flight keyframes against the scene and re-sample colliding ones. build_share : when
+    built through a ``RoadmapStore`` by ``plan_jumps``. build_share : when
     ``plan_jumps`` builds a roadmap under a ``Deadline``, the build gets this share of the
     time left (the query and keyframes the rest).
     """
@@ -84,7 +94,7 @@ class JumpParams:
     stand_radius: float = 0.5
     roadmap_seed: int = 0
     limb_collisions: bool = True
-    build_share: float = 0.7
+    build_share: float = 0.5
 
     def __post_init__(self) -> None:
         if self.n_nodes < 1 or not self.rate > 0 or not 0.0 < self.phase_fraction <= 0.5:
@@ -160,9 +170,10 @@ class JumpContact:
 
 @dataclass(frozen=True, slots=True)
 class JumpEnd:
-    """Takeoff or landing: root position (3,) m, root velocity (3,) m/s, the contacts held
-    there, and the node's centroidal cone (axis (3,), mu) the velocity was checked against
-    (V0 inside it at takeoff, -Vimp at landing)."""
+    """Takeoff or landing: the COM position (3,) m and velocity (3,) m/s when the contacts
+    break (takeoff) or are made (landing), the contacts held there, and the node's centroidal
+    cone (axis (3,), mu) the velocity was checked against (V0 inside it at takeoff, -Vimp at
+    landing)."""
 
     position: FloatArray
     velocity: FloatArray
@@ -173,28 +184,38 @@ class JumpEnd:
 
 @dataclass(frozen=True, slots=True)
 class JumpInfo:
-    """One jump: takeoff, landing, apex (3,) m, flight duration (s), and its absolute times
-    (s from the motion's start): start, contact break, apex, contact creation.
-    limb_collisions : flight keyframes where a limb still touches the scene after re-sampling."""
+    """One jump: takeoff, landing, the COM's apex (3,) m, flight duration (s), and its
+    absolute times (s from the motion's start): start (the crouch begins), push (the COM
+    leaves rest), contact break (takeoff), apex, contact creation (touchdown), rest (the
+    landing has stopped the COM). push_acceleration / landing_acceleration : (3,) m/s^2, the
+    COM's constant acceleration in the push and the landing; push_in_cone / landing_in_cone
+    : the contact force they need lies in the node's centroidal cone."""
 
     takeoff: JumpEnd
     landing: JumpEnd
     apex: FloatArray
     duration: float
     t_start: float
+    push_start: float
     contact_break: float
     apex_time: float
     contact_create: float
-    limb_collisions: int = 0
+    rest: float
+    push_acceleration: FloatArray
+    landing_acceleration: FloatArray
+    push_in_cone: bool
+    landing_in_cone: bool
 
 
 @dataclass(frozen=True, slots=True)
 class JumpPlan:
     """The answer of ``plan_jumps``.
 
-    jumps : the jumps in order. keyframes : whole-body keyframes, absolute times, strictly
-    increasing. timings : seconds per stage (model, roadmap, endpoints, query, keyframes,
-    total). path : the roadmap path (node ids, START = -1, GOAL = -2). roadmap : the roadmap used.
+    jumps : the jumps in order. keyframes : whole-body keyframes, absolute times, evenly
+    spaced. phases : contact phases (flights hold none). com : the COM curve's Bezier
+    segments (the flights are the jumps' parabolas). report : the motion builder's report.
+    timings : seconds per stage (model, roadmap, endpoints, query, keyframes, total). path :
+    the roadmap path (node ids, START = -1, GOAL = -2). roadmap : the roadmap used.
     """
 
     jumps: tuple[JumpInfo, ...]
@@ -202,6 +223,9 @@ class JumpPlan:
     timings: dict[str, float]
     path: JumpPath
     roadmap: Roadmap
+    phases: tuple[Phase, ...] = ()
+    com: tuple[ComSegment, ...] = ()
+    report: MotionReport | None = None
 
 
 # --------------------------------------------------------------------------------------------
@@ -350,12 +374,24 @@ def plan_jumps(
     path = found.value
 
     mark = time.perf_counter()
-    jumps, frames = _synthesise(model, data, params, roadmap, path, start_node, goal_node)
+    jumps, motion = _synthesise(model, data, params, roadmap, path, start_node, goal_node, until)
     timings["keyframes"] = time.perf_counter() - mark
     timings["total"] = time.perf_counter() - clock
-    plan = JumpPlan(jumps, frames, dict(timings), path, roadmap)
+    report = motion.report
+    plan = JumpPlan(
+        jumps, motion.keyframes, dict(timings), path, roadmap, motion.phases, motion.com, report
+    )
     stats.update(found.stats)
     stats.update(timings)
+    problems = [f"whole-body motion: {report.shortfall()}"] if not report.complete else []
+    problems += [
+        f"jump {i}: the {what} needs a force outside the contact cone"
+        for i, j in enumerate(jumps)
+        for what, ok in (("push", j.push_in_cone), ("landing", j.landing_in_cone))
+        if not ok
+    ]
+    if problems:
+        return PlanResult(PlanStatus.APPROXIMATE, plan, stats, "; ".join(problems))
     return PlanResult(PlanStatus.SOLVED, plan, stats)
 
 
@@ -371,16 +407,11 @@ def _synthesise(
     path: JumpPath,
     start: RoadmapNodes,
     goal: RoadmapNodes,
-) -> tuple[tuple[JumpInfo, ...], tuple[Keyframe, ...]]:
-    """Jump descriptions and keyframes along a roadmap path."""
+    until: Termination,
+) -> tuple[tuple[JumpInfo, ...], BuiltMotion]:
+    """Jump descriptions (of the COM) and the whole-body motion along a roadmap path."""
     char = model.character
-    animator = JumpAnimator(
-        char,
-        data,
-        rate=params.rate,
-        phase_fraction=params.phase_fraction,
-        limbs=LimbCollider(char, model.scene) if params.limb_collisions else None,
-    )
+    stancer = NodeStancer(char, data)
     rows: list[dict[str, Any]] = []
     for label in path.nodes:
         if label == START:
@@ -391,7 +422,7 @@ def _synthesise(
             rows.append(_node_row(roadmap.nodes, int(label)))
     by_id = {surface.id: surface for surface in model.surfaces}
     stances: list[Stance] = [
-        animator.stance(
+        stancer.stance(
             path.positions[i],
             path.orientations[i],
             row["active"],
@@ -401,65 +432,99 @@ def _synthesise(
         )
         for i, row in enumerate(rows)
     ]
-    jumps: list[JumpInfo] = []
-    frames: list[Keyframe] = []
-    t0 = 0.0
+    states = [_state(char, row, stance) for row, stance in zip(rows, stances, strict=True)]
+    ends: list[tuple[JumpEnd, JumpEnd, FloatArray, float]] = []
+    legs: list[JumpLeg] = []
     for i in range(len(path)):
         jump = jump_at(path.positions[i], path.positions[i + 1], float(path.t[i]), path.g)
-        out = animator.animate(
-            jump,
-            path.orientations[i],
-            path.orientations[i + 1],
-            stances[i],
-            stances[i + 1],
-            t0,
-        )
-        new = out.frames if not frames else out.frames[1:]  # shared stance frame
-        frames.extend(new)
-        takeoff = _end(model, rows[i], stances[i], jump.p0, jump.v0)
-        landing = _end(model, rows[i + 1], stances[i + 1], jump.p1, jump.vimp)
-        jumps.append(
-            JumpInfo(
-                takeoff,
-                landing,
-                _ro(jump.apex),
+        # the COM's parabola: the root's, translated by the takeoff stance's COM offset
+        offset = com_position(char.model, stances[i].q) - stances[i].q[:3]
+        takeoff = _end(model, rows[i], states[i], jump.p0 + offset, jump.v0)
+        landing = _end(model, rows[i + 1], states[i + 1], jump.p1 + offset, jump.vimp)
+        ends.append((takeoff, landing, jump.apex + offset, jump.duration))
+        legs.append(
+            JumpLeg(
+                takeoff.position,
+                jump.v0,
                 jump.duration,
-                t0,
-                out.contact_break,
-                out.apex_time,
-                out.contact_create,
-                out.limb_collisions,
+                jump.g,
+                takeoff.cone_axis,
+                takeoff.cone_mu,
+                landing.cone_axis,
+                landing.cone_mu,
             )
         )
-        t0 += jump.duration
-    if not frames:  # zero jumps: one frame at the start
-        frames.append(Keyframe(0.0, np.array(stances[0].q), _names(char, stances[0])))
-    return tuple(jumps), tuple(frames)
+    motion, timing = build_jumps(
+        char, model.scene.collision.bvh, states, legs, rate=params.rate, until=until
+    )
+    jumps = tuple(
+        _info(takeoff, landing, apex, duration, when)
+        for (takeoff, landing, apex, duration), when in zip(ends, timing, strict=True)
+    )
+    return jumps, motion
 
 
-def _names(character: Character, stance: Stance) -> tuple[str, ...]:
-    return tuple(character.default_limbs[k].name for k in np.flatnonzero(stance.achieved))
+def _info(
+    takeoff: JumpEnd, landing: JumpEnd, apex: FloatArray, duration: float, when: JumpTiming
+) -> JumpInfo:
+    return JumpInfo(
+        takeoff,
+        landing,
+        _ro(apex),
+        duration,
+        when.crouch,
+        when.push,
+        when.takeoff,
+        when.apex,
+        when.touchdown,
+        when.rest,
+        _ro(when.push_acceleration),
+        _ro(when.landing_acceleration),
+        when.push_in_cone,
+        when.landing_in_cone,
+    )
+
+
+def _state(character: Character, row: dict[str, Any], stance: Stance) -> ContactState:
+    """The contact state of a node's stance: the limbs whose contact was made, each held at
+    its effector placement in ``stance.q``, touching at the limb's contact points."""
+    achieved = stance.achieved & np.asarray(row["active"], dtype=bool)
+    contacts = []
+    for k in np.flatnonzero(achieved):
+        limb = character.default_limbs[k]
+        normal = np.asarray(row["normals"][k], dtype=np.float64)
+        placement = np.asarray(stance.placements[k], dtype=np.float64)
+        contacts.append(
+            LimbContact(
+                limb.name,
+                placement,
+                contact_points(limb, placement, normal),
+                normal,
+                float(row["mus"][k]),
+                int(row["surfaces"][k]),
+            )
+        )
+    return ContactState(stance.q, tuple(contacts))
 
 
 def _end(
     model: ReducedModel,
     row: dict[str, Any],
-    stance: Stance,
+    state: ContactState,
     position: FloatArray,
     velocity: FloatArray,
 ) -> JumpEnd:
-    """Takeoff or landing description: the contacts the stance achieved; the cone of the node
-    (recomputed from the achieved contacts when some could not be made)."""
+    """Takeoff or landing description (COM ``position`` (3,), ``velocity`` (3,)): the
+    contacts the stance achieved (each at the centre of its contact points); the cone of the
+    node (recomputed from the achieved contacts when some could not be made)."""
     char = model.character
-    achieved = stance.achieved & np.asarray(row["active"], dtype=bool)
+    names = [limb.name for limb in char.default_limbs]
+    achieved = np.zeros(len(names), dtype=bool)
+    for contact in state.contacts:
+        achieved[names.index(contact.limb)] = True
     contacts = tuple(
-        JumpContact(
-            char.default_limbs[k].name,
-            _ro(stance.points[k]),
-            _ro(row["normals"][k]),
-            float(row["mus"][k]),
-        )
-        for k in np.flatnonzero(achieved)
+        JumpContact(c.limb, _ro(c.points.mean(axis=0)), _ro(c.normal), float(c.mu))
+        for c in state.contacts
     )
     mask = achieved if achieved.any() else np.asarray(row["active"], dtype=bool)
     axes, mus, _ = centroidal_cones(row["normals"][None], row["mus"][None], mask[None])

@@ -40,7 +40,8 @@ class MotionReport:
     worst_shape say where; worst_self_depth (m). max_hold_error : m, stance contacts.
     com_error_max / com_error_p99 : m, keyframe COM against its curve. qp_fallbacks :
     control steps solved without the collision dampers (their QP had no solution).
-    swings_raised : swing phases tracked again with a higher arc (2PAC 7.2).
+    swings_raised : swing phases tracked again with a higher arc (2PAC 7.2), and flights
+    with their limbs tucked further.
     """
 
     phases_animated: int
@@ -136,6 +137,12 @@ def keyframe_grid(t0: float, t1: float, rate: float) -> FloatArray:
     return np.asarray(t0 + (t1 - t0) * np.arange(count + 1) / count, dtype=np.float64)
 
 
+def _slerp(a: FloatArray, b: FloatArray, u: float) -> FloatArray:
+    """(3, 3) rotation a fraction ``u`` of the way from ``a`` (3, 3) to ``b`` (3, 3)."""
+    step = pin.log3(a.T @ b)
+    return np.asarray(a @ pin.exp3(u * step), dtype=np.float64)
+
+
 class _Targets:
     """Per-time targets of a spec: the phase, its stance, the COM and the swing pose; the
     swing arc of a phase may be raised (``lifts``, per phase index)."""
@@ -145,6 +152,7 @@ class _Targets:
         self.spec = spec
         self.breaks = np.array([p.t1 for p in spec.phases])
         self.lifts: dict[int, float] = {}
+        self.tucks: dict[int, tuple[float, float]] = {}
         self.unguarded: set[int] = set()
         self._arcs: dict[tuple[int, float], Any] = {}
 
@@ -178,18 +186,64 @@ class _Targets:
             )
         return self._arcs[key]
 
+    def com(self, t: float) -> FloatArray:
+        """(3,) m, the COM curve at ``t`` (clamped to its span)."""
+        curve = self.spec.com
+        return np.asarray(curve(np.array([min(max(t, curve.t0), curve.t1)]))[0], dtype=np.float64)
+
+    def carried(self, phase: MotionPhase, t: float, k: int) -> tuple[tuple[str, FloatArray], ...]:
+        """(limb, pose (4, 4)) of the limbs a flight ``phase`` (index ``k``) carries at
+        ``t``: the COM plus an offset blended from the start offset to the end offset
+        (smoothstep), pulled toward the limb's tuck offset (raised by the phase's extra lift)
+        by share sin^2(pi s) (s the fraction of the flight but its last
+        ``FLIGHT_SETTLE_SHARE``, in which the limbs hold their landing offsets; share
+        ``FLIGHT_TUCK`` unless the phase was retried with a stronger tuck, ``tucks``); the
+        orientation slerped from start to end."""
+        if not phase.flight:
+            return ()
+        span = (phase.t1 - phase.t0) * (1.0 - tuning.FLIGHT_SETTLE_SHARE)
+        s = 1.0 if span <= 0.0 else min(1.0, max(0.0, (t - phase.t0) / span))
+        blend = s * s * (3.0 - 2.0 * s)
+        share, lift = self.tucks.get(k, (tuning.FLIGHT_TUCK, 0.0))
+        tuck = share * math.sin(math.pi * s) ** 2
+        c0, c1, c = self.com(phase.t0), self.com(phase.t1), self.com(t)
+        out = []
+        for limb in phase.flight:
+            lerp = (1.0 - blend) * (limb.start[:3, 3] - c0) + blend * (limb.end[:3, 3] - c1)
+            aim = np.asarray(limb.tuck, dtype=np.float64) + np.array([0.0, 0.0, lift])
+            pose = np.eye(4)
+            pose[:3, 3] = c + lerp + tuck * (aim - lerp)
+            pose[:3, :3] = _slerp(limb.start[:3, :3], limb.end[:3, :3], blend)
+            out.append((limb.limb, pose))
+        return tuple(out)
+
     def at(self, t: float) -> StepTargets:
         k = self.phase_index(t)
         phase: MotionPhase = self.spec.phases[k]
-        curve = self.spec.com
-        com = np.asarray(curve(np.array([min(max(t, curve.t0), curve.t1)]))[0], dtype=np.float64)
+        com = self.com(t)
         arc = self.arc(k)
         swing = None
         if arc is not None and phase.swing is not None:
             swing = (phase.swing.limb, np.asarray(arc(t), dtype=np.float64))
         stance = tuple((c.limb, np.asarray(c.placement)) for c in phase.stance)
+        if phase.flight is None and not phase.fast_com:
+            return StepTargets(
+                stance, com, swing, phase.posture, k not in self.unguarded, phase.level_trunk
+            )
+        # a fast COM: its target unsaturated, the trunk height aimed with it
+        posture = np.array(phase.posture, dtype=np.float64)
+        posture[:3] += com - self.com(phase.t0)
         return StepTargets(
-            stance, com, swing, phase.posture, k not in self.unguarded, phase.level_trunk
+            stance,
+            com,
+            swing,
+            posture,
+            k not in self.unguarded,
+            phase.level_trunk,
+            carried=self.carried(phase, t, k),
+            exact_com=phase.flight is not None,
+            com_reach=math.inf,
+            rigid_stance=phase.rigid_stance,
         )
 
 
@@ -238,9 +292,13 @@ def _track_segment(
             if until():
                 out.cut_short = True
                 break
-            dt = (t - previous) / tuning.SUBSTEPS
-            for s in range(1, tuning.SUBSTEPS + 1):
-                q = tracker.step(q, targets.at(previous + s * dt), dt)
+            running = spec.phases[targets.phase_index(t)]
+            fast = running.fast_com or running.flight is not None
+            substeps = tuning.FAST_SUBSTEPS if fast else tuning.SUBSTEPS
+            dt = (t - previous) / substeps
+            share = tuning.SUBSTEPS / substeps
+            for s in range(1, substeps + 1):
+                q = tracker.step(q, targets.at(previous + s * dt), dt, share)
         previous = t
         phase = spec.phases[targets.phase_index(t)]
         check = checker.check(q, phase.stance)
@@ -252,7 +310,20 @@ def _track_segment(
         )
     out.q = q
     k = targets.phase_index(times[0]) if times else 0
-    swing = spec.phases[k].swing
+    phase = spec.phases[k]
+    if phase.flight and out.keyframes:
+        # a flight lands when its carried effectors are where they will touch down
+        pin.framesForwardKinematics(model, tracker.data, q)
+        out.landing_error = max(
+            float(
+                np.linalg.norm(
+                    tracker.data.oMf[tracker.character.limb(limb).frame_id].translation
+                    - pose[:3, 3]
+                )
+            )
+            for limb, pose in targets.carried(phase, out.keyframes[-1].t, k)
+        )
+    swing = phase.swing
     if swing is not None and out.keyframes:
         pin.framesForwardKinematics(model, tracker.data, q)
         frame = tracker.data.oMf[tracker.character.limb(swing.limb).frame_id]
@@ -304,7 +375,8 @@ def build_motion(
     """Keyframes of ``spec`` for ``character`` in the scene ``scene_bvh`` (coal BVH), each
     checked. A swing phase whose keyframes collide, or whose effector does not reach its
     landing, is tracked again from its start with the next higher arc of ``SWING_LIFTS``
-    (2PAC section 7.2), the best attempt kept. ``until`` is polled once per keyframe: when
+    (2PAC section 7.2), a flight whose keyframes collide with its limbs tucked further
+    (``FLIGHT_TUCKS``), the best attempt kept. ``until`` is polled once per keyframe: when
     it fires, the keyframes so far are returned and the report says ``cut_short``. With
     ``spec.q_end``, a motion not cut short ends exactly there (its last ``END_BLEND_S``
     seconds blended into it, and checked again)."""
@@ -333,15 +405,22 @@ def build_motion(
     for times in groups:
         k = targets.phase_index(times[0])
         swing = spec.phases[k].swing
+        flight = spec.phases[k].flight
         attempts = [(0.0, True)]
-        if swing is not None:
+        if flight:
+            # a colliding flight is tracked again with its limbs tucked further
+            attempts = [(float(n), True) for n in range(len(tuning.FLIGHT_TUCKS) + 1)]
+        elif swing is not None:
             lifts = [swing.lift, *(x for x in tuning.SWING_LIFTS if x > swing.lift)]
             # last resort: the highest arc with the swinging effector unguarded
             attempts = [*((x, True) for x in lifts), (lifts[-1], False)]
         best: _Segment | None = None
         best_attempt = attempts[0]
         for n, (lift, guarded) in enumerate(attempts):
-            if n:
+            if n and flight:
+                retried += 1
+                targets.tucks[k] = tuning.FLIGHT_TUCKS[n - 1]
+            elif n:
                 retried += 1
                 targets.lifts[k] = lift
                 if not guarded:
@@ -355,7 +434,13 @@ def build_motion(
             if swing is not None and not _swing_at_fault(segment, limb_shapes[swing.limb]):
                 break  # what collides is not the swinging limb: a higher arc cannot help
         assert best is not None
-        if swing is not None:
+        if flight:
+            level = int(best_attempt[0])
+            if level:
+                targets.tucks[k] = tuning.FLIGHT_TUCKS[level - 1]
+            else:
+                targets.tucks.pop(k, None)
+        elif swing is not None:
             targets.lifts[k] = best_attempt[0]
             if best_attempt[1]:
                 targets.unguarded.discard(k)

@@ -36,6 +36,21 @@ class Swing:
 
 
 @dataclass(frozen=True, slots=True)
+class FlightLimb:
+    """A limb carried through a flight: its effector goes from ``start`` (4, 4), its pose
+    when the flight begins, to ``end`` (4, 4), its pose when the flight ends (world). In
+    between it rides with the COM: at flight fraction s its position is the COM plus the
+    start offset blended into the end offset (smoothstep), pulled toward ``tuck`` (3,) m,
+    the effector's offset from the COM in a natural posture (world frame), by up to
+    ``FLIGHT_TUCK`` mid-flight; its orientation turns from start to end (slerp)."""
+
+    limb: str
+    start: FloatArray
+    end: FloatArray
+    tuck: FloatArray
+
+
+@dataclass(frozen=True, slots=True)
 class MotionPhase:
     """[t0, t1] s with ``stance`` held throughout, at most one ``swing``.
 
@@ -43,6 +58,15 @@ class MotionPhase:
     leads to); its root orientation is the trunk orientation aimed at: its roll and pitch
     with ``level_trunk`` False (a step ending in a validated state), else its yaw alone (the
     trunk upright; a character whose trunk may pitch keeps the pitch).
+
+    flight : None for a phase on the ground; for a flight (``stance`` empty) the limbs it
+    carries (possibly none): the COM follows its curve exactly (the whole body translated
+    onto it each control step), each carried limb along its ``FlightLimb`` path.
+    fast_com : the COM moves fast (a jump's takeoff push or landing): its target is not
+    saturated at ``COM_MAX_ERROR`` and the trunk height target moves with it (``posture``'s
+    root position is then where the root is aimed at ``t0``). A flight implies it.
+    rigid_stance : the stance contacts are equality constraints of the tracker's QP, not
+    dominant costs (a takeoff push or a landing: the COM lags rather than drag them).
     """
 
     t0: float
@@ -51,6 +75,13 @@ class MotionPhase:
     posture: FloatArray
     swing: Swing | None = None
     level_trunk: bool = True
+    flight: tuple[FlightLimb, ...] | None = None
+    fast_com: bool = False
+    rigid_stance: bool = False
+
+    def __post_init__(self) -> None:
+        if self.flight is not None and (self.stance or self.swing is not None):
+            raise ValueError("a flight holds no stance and has no swing")
 
 
 @dataclass(frozen=True, slots=True)

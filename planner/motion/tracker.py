@@ -8,9 +8,13 @@ Each step solves, over the configuration step ``dq`` (tangent space),
 
 with the tasks, by cost: stance contacts held (dominant), the COM on its curve, the swing
 effector on its arc, the trunk's roll and pitch at the planned orientation, and a posture
-pull toward the phase's planned configuration. The QP backend is daqp through qpsolvers.
-When the QP has no solution (a damper that cannot be met within the speed limits), the
-step is retried without the dampers, then skipped (the body holds still).
+pull toward the phase's planned configuration. With ``StepTargets.rigid_stance`` (a jump's
+stance phases, where the COM moves fast) the stance contacts are equality constraints
+instead, ``J_c dq = -e_c`` (position for a point contact, full placement for a patch): the
+COM then lags its curve rather than drag a contact. The QP backend is daqp through
+qpsolvers. When the QP has no solution (a damper that cannot be met within the speed
+limits), the step is retried without the dampers, then (rigid stance) with the contacts
+back in the cost, then skipped (the body holds still).
 """
 
 from __future__ import annotations
@@ -21,9 +25,9 @@ from typing import Any
 
 import numpy as np
 import pinocchio as pin
+import qpsolvers
 from numpy.typing import NDArray
-from pink import Configuration, solve_ik
-from pink.exceptions import NoSolutionFound
+from pink import Configuration, build_ik
 from pink.limits import ConfigurationLimit, VelocityLimit
 from pink.tasks import ComTask, FrameTask, PostureTask
 from scipy.spatial.transform import Rotation
@@ -45,6 +49,12 @@ class StepTargets:
     resort lets a swing that cannot land otherwise through: the checker still counts it).
     level_trunk : the trunk aims at the posture's yaw only (and its pitch for a character
     whose trunk may pitch); otherwise at the posture's own roll and pitch.
+    carried : (limb, pose (4, 4)) effectors carried through a flight (swing cost, guarded
+    like a swing). exact_com : a flight: the whole body is translated so that its COM is
+    exactly ``com`` before and after the QP (the QP then only shapes the body).
+    com_reach : m, the COM target is pulled in to this distance from the COM
+    (``COM_MAX_ERROR``; unbounded for a fast COM). rigid_stance : the stance contacts are
+    equality constraints of the QP, not costs.
     """
 
     stance: tuple[tuple[str, FloatArray], ...]
@@ -53,6 +63,10 @@ class StepTargets:
     posture: FloatArray
     swing_guarded: bool = True
     level_trunk: bool = True
+    carried: tuple[tuple[str, FloatArray], ...] = ()
+    exact_com: bool = False
+    com_reach: float = tuning.COM_MAX_ERROR
+    rigid_stance: bool = False
 
 
 def effector_geometries(character: Character) -> dict[str, frozenset[int]]:
@@ -143,7 +157,7 @@ class WholeBodyTracker:
         ]
         self.configuration = Configuration(model, self.data, pin.neutral(model), copy_data=False)
         self.fallbacks = 0
-        self._lift_off: tuple[str, dict[int, float]] | None = None
+        self._lift_off: dict[str, dict[int, float]] = {}
         self._trunk_cache: dict[bytes, FloatArray] = {}
         root_nq = 7 if model.joints[1].nq == 7 else 0
         self._bounded = np.arange(root_nq, model.nq)
@@ -176,26 +190,46 @@ class WholeBodyTracker:
         """Forget what earlier steps left (remembered witnesses, the lift-off depths): the
         next step starts a fresh track."""
         self.scene.memory.clear()
-        self._lift_off = None
+        self._lift_off = {}
 
-    def _swing_security(self, limb: str) -> dict[int, float]:
-        """Security distance (m) of each shape of the swinging ``limb``'s effector: never
-        deeper than where it lifted off (a real robot's foot capsule may hang under the sole
-        by design), nor than ``SWING_SECURITY_DISTANCE``; measured when the swing starts."""
-        if self._lift_off is None or self._lift_off[0] != limb:
-            depths = self.scene.depths(self.configuration.data, self.effectors[limb])
-            security = {
-                i: min(tuning.SWING_SECURITY_DISTANCE, d - tuning.SWING_SECURITY_MARGIN)
-                for i, d in depths.items()
-            }
-            self._lift_off = (limb, security)
-        return self._lift_off[1]
+    def _swing_security(self, limbs: Sequence[str]) -> dict[int, float]:
+        """Security distance (m) of each shape of the swinging (or carried) ``limbs``'
+        effectors: never deeper than where it lifted off (a real robot's foot capsule may
+        hang under the sole by design), nor than ``SWING_SECURITY_DISTANCE``; measured when
+        the limb starts moving, forgotten when it stops."""
+        for limb in [k for k in self._lift_off if k not in limbs]:
+            del self._lift_off[limb]
+        security: dict[int, float] = {}
+        for limb in limbs:
+            if limb not in self._lift_off:
+                depths = self.scene.depths(self.configuration.data, self.effectors[limb])
+                self._lift_off[limb] = {
+                    i: min(tuning.SWING_SECURITY_DISTANCE, d - tuning.SWING_SECURITY_MARGIN)
+                    for i, d in depths.items()
+                }
+            security.update(self._lift_off[limb])
+        return security
 
-    def step(self, q: FloatArray, targets: StepTargets, dt: float) -> FloatArray:
-        """The configuration (nq,) one control step of ``dt`` s after ``q`` (nq,)."""
+    def _onto_com(self, q: FloatArray, com: FloatArray) -> FloatArray:
+        """``q`` (nq,) translated so that its COM is ``com`` (3,) m (a floating base moves
+        every body by its own translation)."""
+        here = pin.centerOfMass(self.model, self.data, q, False)
+        out = np.array(q, dtype=np.float64)
+        out[:3] += np.asarray(com, dtype=np.float64) - here
+        return out
+
+    def step(
+        self, q: FloatArray, targets: StepTargets, dt: float, share: float = 1.0
+    ) -> FloatArray:
+        """The configuration (nq,) one control step of ``dt`` s after ``q`` (nq,).
+        ``share`` : this step is that fraction of a nominal control step (finer steps, as
+        ``FAST_SUBSTEPS``): the gentle trunk and posture pulls, which are fractions per step,
+        are scaled so that they converge as fast per second as with nominal steps."""
         config = self.configuration
         q = np.array(q, dtype=np.float64)
         q[self._bounded] = np.clip(q[self._bounded], self._lower, self._upper)
+        if targets.exact_com:
+            q = self._onto_com(q, targets.com)
         config.update(q)
         tasks: list[Any] = []
         skipped: set[int] = set()
@@ -204,53 +238,78 @@ class WholeBodyTracker:
             task.set_target(pin.SE3(pose[:3, :3].copy(), pose[:3, 3].copy()))
             tasks.append(task)
             skipped |= self.effectors[limb]
-        light: dict[int, float] = {}
-        if targets.swing is not None:
-            limb, pose = targets.swing
+        moving = [] if targets.swing is None else [targets.swing]
+        moving += list(targets.carried)
+        for limb, pose in moving:
             task = self.swing_tasks[limb]
             here = self.data.oMf[self.character.limb(limb).frame_id].translation
             goal = _saturated(here, pose[:3, 3], tuning.SWING_MAX_ERROR)
             task.set_target(pin.SE3(pose[:3, :3].copy(), goal))
             tasks.append(task)
+        guarded = [limb for limb, _ in targets.carried]
+        if targets.swing is not None:
             if targets.swing_guarded:
-                light = self._swing_security(limb)
+                guarded.insert(0, targets.swing[0])
             else:
-                skipped |= self.effectors[limb]
-        else:
-            self._lift_off = None
+                skipped |= self.effectors[targets.swing[0]]
+        light = self._swing_security(guarded)
         com = pin.centerOfMass(self.model, self.data, q, False)
-        goal = _saturated(com, np.asarray(targets.com, dtype=np.float64), tuning.COM_MAX_ERROR)
+        goal = _saturated(com, np.asarray(targets.com, dtype=np.float64), targets.com_reach)
         self.com_task.set_target(goal)
         tasks.append(self.com_task)
         posture = np.asarray(targets.posture, dtype=np.float64)
         trunk = self.trunk_rotation(posture, targets.level_trunk)
         self.trunk_task.set_target(pin.SE3(trunk, posture[:3].copy()))
+        self.trunk_task.gain = 1.0 - (1.0 - tuning.TRUNK_GAIN) ** share
+        self.posture_task.gain = 1.0 - (1.0 - tuning.POSTURE_GAIN) ** share
         tasks.append(self.trunk_task)
         # each joint pulled at most POSTURE_MAX_ERROR toward its posture per step: summed
         # over thirty joints, a far posture would otherwise outweigh the stance contacts
-        reach = tuning.POSTURE_MAX_ERROR
+        reach = tuning.POSTURE_MAX_ERROR * share
         joints = slice(self._bounded[0], None)
         goal = q.copy()
         goal[joints] = q[joints] + np.clip(posture[joints] - q[joints], -reach, reach)
         self.posture_task.set_target(goal)
         tasks.append(self.posture_task)
         self.scene.set_phase(frozenset(skipped), light)
-        for limits in (
-            [*self.limits, self.scene, self.self_clearance],
-            self.limits,
-        ):
-            try:
-                velocity = solve_ik(
-                    config,
-                    tasks,
-                    dt,
-                    solver=tuning.QP_SOLVER,
-                    damping=tuning.DAMPING,
-                    limits=limits,
-                    safety_break=False,
-                )
-            except NoSolutionFound:
+        rigid = [limb for limb, _ in targets.stance] if targets.rigid_stance else []
+        attempts: list[tuple[list[Any], bool]] = [
+            ([*self.limits, self.scene, self.self_clearance], True),
+            (self.limits, True),
+        ]
+        if rigid:
+            attempts += [
+                ([*self.limits, self.scene, self.self_clearance], False),
+                (self.limits, False),
+            ]
+        for limits, hard in attempts:
+            velocity = self._solve(tasks, dt, limits, rigid if hard else [])
+            if velocity is None:
                 self.fallbacks += 1
                 continue
-            return np.asarray(pin.integrate(self.model, q, velocity * dt), dtype=np.float64)
+            q = np.asarray(pin.integrate(self.model, q, velocity * dt), dtype=np.float64)
+            return self._onto_com(q, targets.com) if targets.exact_com else q
         return np.array(q, dtype=np.float64)
+
+    def _solve(
+        self, tasks: Sequence[Any], dt: float, limits: Sequence[Any], rigid: Sequence[str]
+    ) -> FloatArray | None:
+        """The QP's velocity (nv,) rad/s or m/s, or None when it has no solution. ``rigid``
+        limbs' stance tasks (targets already set) are also equality constraints: the
+        effector's error is corrected in this step, exactly (position rows only for a
+        point contact)."""
+        config = self.configuration
+        problem = build_ik(config, tasks, dt, damping=tuning.DAMPING, limits=limits)
+        if rigid:
+            rows, values = [], []
+            for limb in rigid:
+                task = self.stance_tasks[limb]
+                keep = slice(0, 6) if self.character.limb(limb).contact == "patch" else slice(0, 3)
+                rows.append(task.compute_jacobian(config)[keep])
+                values.append(-task.gain * task.compute_error(config)[keep])
+            problem.A = np.vstack(rows)
+            problem.b = np.concatenate(values)
+        result = qpsolvers.solve_problem(problem, solver=tuning.QP_SOLVER)
+        if not result.found or result.x is None:
+            return None
+        return np.asarray(result.x, dtype=np.float64) / dt

@@ -11,6 +11,11 @@ from __future__ import annotations
 SUBSTEPS = 2
 """Control steps per keyframe period: at 30 keyframes per second the QP runs at 60 Hz."""
 
+FAST_SUBSTEPS = 6
+"""Control steps per keyframe period in a phase whose COM moves fast (a jump's stances and
+flights: 180 Hz at 30 keyframes per second): a step's joint motion is small enough that the
+linearised contact constraints hold the stance within a millimetre."""
+
 MAX_JOINT_SPEED = 10.0
 """rad/s, cap on every joint's speed on top of the URDF's own velocity limit."""
 
@@ -173,3 +178,46 @@ whole-body tracker follows it without the root jumping between keyframes."""
 
 FALLBACK_MAX_ACCELERATION = 0.6
 """m/s^2, peak COM acceleration of the rest-to-rest segments of a window that fell back."""
+
+# --- jumps (takeoff push, flight, landing) ----------------------------------------------------
+JUMP_ACCELERATION = 2.0 * 9.81
+"""m/s^2: the takeoff push accelerates the COM from rest to the takeoff velocity, the landing
+decelerates it from the impact velocity to rest, each at a constant acceleration: this one
+when the legs reach far enough (the push or landing lasts |v| / a, the COM travels
+|v|^2 / 2a; 2 g is a strong human jump), more when they do not (``JUMP_CROUCH_SHARE``)."""
+
+JUMP_CROUCH_SHARE = 0.3
+"""The COM travels at most this share of its standing height above the contacts during a
+push or a landing (the legs' reach): a fast jump then pushes or lands harder and shorter."""
+
+JUMP_MIN_STANCE_S = 0.1
+"""s: shortest takeoff push or landing: three keyframes at 30 Hz, so that no velocity changes
+between two keyframes (a body whose legs reach less pushes and lands deeper than its reach)."""
+
+JUMP_MAX_STANCE_S = 0.6
+"""s: longest takeoff push or landing tried when the contact cone refuses the nominal one."""
+
+JUMP_SHIFT_ACCELERATION = 1.5
+"""m/s^2, peak COM acceleration of the rest-to-rest shifts between jumps (crouching before a
+takeoff, standing up after a landing)."""
+
+JUMP_MIN_SHIFT_S = 0.3
+"""s: shortest shift between a landing and the next takeoff's crouch."""
+
+FLIGHT_TUCK = 0.4
+"""Share of the way mid-flight a carried limb is pulled from its straight path (start offset
+to end offset, relative to the COM) toward its natural-posture offset: the legs tuck."""
+
+FLIGHT_TUCKS = ((0.7, 0.1), (0.95, 0.25))
+"""(share, extra lift m) of the tuck tried in turn, after ``FLIGHT_TUCK`` and no extra lift,
+for a flight whose keyframes collide (a leg trailing into a platform's edge): the carried
+limbs pulled further toward their tuck offset, raised this much more (world z)."""
+
+FLIGHT_SETTLE_SHARE = 0.15
+"""Share of a flight, at its end, in which the carried limbs hold their landing offsets from
+the COM (the legs reach their touchdown posture before the contacts are made, as a swing
+settles before its phase ends)."""
+
+FLIGHT_TUCK_LIFT = 0.15
+"""m: the natural-posture offset a carried limb tucks toward is raised this much (world z),
+so that the feet draw up under the body mid-flight instead of hanging straight."""

@@ -12,6 +12,7 @@ from asgi_lifespan import LifespanManager
 
 from service.app import create_app
 from service.settings import Settings
+from tests.motion_audit import audit_from_json
 
 pytestmark = pytest.mark.anyio
 
@@ -73,12 +74,41 @@ async def test_roadmap_build_persist_and_jump(
     first = await client.post("/v1/jumps", json=request, timeout=120)
     assert first.status_code == 200, first.text
     body = first.json()
-    assert body["status"] == "SOLVED", body["message"]
+    # APPROXIMATE: every jump animated, the builder's report saying what is not clean
+    assert body["status"] in {"SOLVED", "APPROXIMATE"}, body["message"]
+    assert (body["status"] == "SOLVED") == bool(body["report"]["complete"])
     assert body["jumps"]
     for jump in body["jumps"]:
         _check_jump(jump)
-    times = [k["t"] for k in body["keyframes"]]
-    assert times == sorted(times) and len(times) > 5
+        assert jump["push_start"] < jump["takeoff_time"] < jump["landing_time"] < jump["rest_time"]
+    times = np.array([k["t"] for k in body["keyframes"]])
+    steps = np.diff(times)
+    assert len(times) > 5 and steps.min() > 0 and steps.max() - steps.min() < 1e-6
+    assert body["phases"] and body["com"]
+    assert body["report"]["phases_animated"] == len(body["phases"])
+    flying = [
+        k
+        for k in body["keyframes"]
+        if body["jumps"][0]["takeoff_time"] < k["t"] < body["jumps"][0]["landing_time"]
+    ]
+    assert flying and all(not k["contacts"] for k in flying)
+    # the independent auditor: the keyframes' COM on each parabola in flight, no root jump
+    # outside the jumps (push to rest), no link 1 cm inside the scene
+    mesh = (await client.get("/v1/scenes/gaps/mesh", params={"format": "stl"})).content
+    spans = [(j["push_start"], j["rest_time"]) for j in body["jumps"]]
+    audit = audit_from_json(body, "quadruped", mesh, flights=spans)
+    assert audit.root_jumps == 0 and audit.penetrating_frames == 0, audit.summary()
+    gravity = np.array([0.0, 0.0, -9.81])
+    for jump in body["jumps"]:
+        t0, t1 = jump["takeoff_time"], jump["landing_time"]
+        for t, com in zip(audit.times, audit.coms, strict=True):
+            if t0 <= t <= t1:
+                tau = t - t0
+                p0, v0 = (
+                    np.array(jump["takeoff"]["position"]),
+                    np.array(jump["takeoff"]["velocity"]),
+                )
+                assert np.linalg.norm(com - (p0 + v0 * tau + 0.5 * gravity * tau**2)) < 0.02
 
     app = create_app(settings)  # a restart: the finished roadmap is still there
     async with (
@@ -106,7 +136,7 @@ async def test_jumps_without_roadmap(client: httpx.AsyncClient) -> None:
     response = await client.post("/v1/jumps", json=request, timeout=120)
     assert response.status_code == 200, response.text
     body = response.json()
-    assert body["status"] in {"SOLVED", "INFEASIBLE", "TIMEOUT"}
+    assert body["status"] in {"SOLVED", "APPROXIMATE", "INFEASIBLE", "TIMEOUT"}
     for jump in body["jumps"]:
         _check_jump(jump)
 

@@ -152,10 +152,16 @@ def test_deadline_builds_a_partial_roadmap_and_still_answers() -> None:
         params=params,
         until=Deadline(3.0),
     )
-    assert result.status is PlanStatus.SOLVED, result.message
+    # The answer does not wait for the build: a jump path from the partial roadmap, with
+    # keyframes for what the budget left (all of them on a quiet machine; a busy one may
+    # cut the last phases, and then the status and message say so).
     assert result.value is not None
     assert len(result.value.roadmap.nodes) < 200_000
     assert result.value.roadmap.stats["stopped"] == 1
+    assert result.value.jumps and result.value.keyframes
+    assert result.status in (PlanStatus.SOLVED, PlanStatus.APPROXIMATE), result.message
+    if result.status is PlanStatus.APPROXIMATE:
+        assert "budget" in result.message
 
 
 def test_section_matches_contact_region() -> None:
@@ -217,7 +223,9 @@ def test_root_pose_end_points() -> None:
         roadmap=first.value.roadmap,
         params=params,
     )
-    assert again.status is PlanStatus.SOLVED
+    assert again.status in (PlanStatus.SOLVED, PlanStatus.APPROXIMATE), again.message
     assert again.value is not None
-    assert np.allclose(again.value.jumps[0].takeoff.position, path.positions[0])
+    # the root starts at the given pose; the jump's takeoff position is the COM's
+    assert np.allclose(again.value.path.positions[0], path.positions[0])
+    assert np.allclose(again.value.keyframes[0].q[:3], path.positions[0])
     assert np.allclose(again.value.keyframes[0].q[3:7], path.orientations[0])

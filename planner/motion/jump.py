@@ -1,0 +1,346 @@
+"""The motion of a sequence of ballistic jumps as a :class:`MotionSpec`, animated by the one
+builder.
+
+Per jump, four phases: a rest-to-rest shift on the takeoff contacts into the crouch the
+push starts from; the takeoff push, in which the COM accelerates at a constant rate from
+rest to the takeoff velocity ``v0`` (a quadratic Bezier); the flight, in which the COM
+follows the parabola ``c0 + v0 t + g t^2 / 2`` exactly (a quadratic Bezier is that
+parabola) and every limb that lands or took off is carried from its takeoff pose to its
+landing pose; the landing, in which the COM decelerates at a constant rate from the impact
+velocity to rest. A last shift stands the body up on the last landing's contacts. The COM
+velocity is continuous everywhere; its acceleration is ``JUMP_ACCELERATION`` (more when the
+legs' reach demands a shorter push) and the contact force it needs, m (c'' - g), is checked
+against the node's centroidal cone (the push or landing is lengthened or shortened until it passes,
+or the timing says it does not). Every stance phase of a jump holds its contacts rigidly (equality
+constraints of the tracker's QP, finer control steps): the tracked COM lags its curve where the
+joint speed limits cannot follow it, the feet never slide.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+import trajectory
+from planner.character import Character
+from planner.kinematics import com_position, frame_placement
+from planner.motion import tuning
+from planner.motion.builder import BuiltMotion, build_motion
+from planner.motion.sequence import rest_to_rest
+from planner.motion.spec import FlightLimb, MotionPhase, MotionSpec, natural_posture
+from planner.termination import Termination, never
+
+if TYPE_CHECKING:  # annotations only: planner.contact imports planner.motion
+    from planner.contact.state import ContactState
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class JumpLeg:
+    """One jump between two stances, as the builder needs it (world frame, SI units).
+
+    com0 : (3,) m, the COM when the contacts break (the takeoff stance's COM). v0 : (3,)
+    m/s takeoff velocity. duration : s of flight. g : gravity magnitude (m/s^2).
+    takeoff_axis / landing_axis : (3,) unit axes of the two nodes' centroidal cones (zeros:
+    unchecked), takeoff_mu / landing_mu their friction coefficients.
+    """
+
+    com0: FloatArray
+    v0: FloatArray
+    duration: float
+    g: float
+    takeoff_axis: FloatArray
+    takeoff_mu: float
+    landing_axis: FloatArray
+    landing_mu: float
+
+    @property
+    def gravity(self) -> FloatArray:
+        """(3,) m/s^2."""
+        return np.array([0.0, 0.0, -self.g])
+
+    @property
+    def com1(self) -> FloatArray:
+        """(3,) m, the COM at touchdown."""
+        t = self.duration
+        return np.asarray(self.com0 + self.v0 * t + 0.5 * self.gravity * t * t, dtype=np.float64)
+
+    @property
+    def vimp(self) -> FloatArray:
+        """(3,) m/s, the COM velocity at touchdown."""
+        return np.asarray(self.v0 + self.gravity * self.duration, dtype=np.float64)
+
+
+@dataclass(frozen=True, slots=True)
+class JumpTiming:
+    """When one jump's phases start (s from the motion's start) and how its stances came
+    out. crouch : the shift into the push's crouch begins; push : the COM leaves rest;
+    takeoff : the contacts break; apex : the COM is highest (clamped to the flight);
+    touchdown : the landing contacts are made; rest : the COM is at rest again.
+    push_acceleration / landing_acceleration : (3,) m/s^2, the COM's constant acceleration
+    in each; push_in_cone / landing_in_cone : the contact force m (c'' - g) lies in the node's
+    centroidal cone."""
+
+    crouch: float
+    push: float
+    takeoff: float
+    apex: float
+    touchdown: float
+    rest: float
+    push_acceleration: FloatArray
+    landing_acceleration: FloatArray
+    push_in_cone: bool
+    landing_in_cone: bool
+
+
+def in_cone(force: FloatArray, axis: FloatArray, mu: float) -> bool:
+    """Whether ``force`` (3,) lies in the cone of unit ``axis`` (3,) and half-angle atan(mu)
+    (a zero axis: no cone to check, True)."""
+    if float(np.linalg.norm(axis)) < 1e-12:
+        return True
+    norm = float(np.linalg.norm(force))
+    return norm > 0.0 and float(force @ axis) >= norm * math.cos(math.atan(mu)) - 1e-9
+
+
+def stance_duration(
+    velocity: FloatArray,
+    gravity: FloatArray,
+    axis: FloatArray,
+    mu: float,
+    reach: float,
+    *,
+    landing: bool,
+) -> tuple[float, bool]:
+    """Duration (s) of a takeoff push reaching ``velocity`` (3,) m/s from rest (or, with
+    ``landing``, of a landing stopping it) at constant acceleration, and whether its contact
+    force (c'' - g, per kg) lies in the cone (``axis`` (3,), ``mu``). Nominally the push
+    accelerates at ``JUMP_ACCELERATION``, shortened so the COM travels at most ``reach`` m
+    (never under ``JUMP_MIN_STANCE_S``); when the cone refuses it, longer durations up to
+    ``JUMP_MAX_STANCE_S``, then shorter ones, are tried."""
+    speed = float(np.linalg.norm(velocity))
+    nominal = speed / tuning.JUMP_ACCELERATION
+    if speed > 0.0:
+        nominal = min(nominal, 2.0 * reach / speed)
+    nominal = min(max(nominal, tuning.JUMP_MIN_STANCE_S), tuning.JUMP_MAX_STANCE_S)
+    sign = -1.0 if landing else 1.0
+    longer = np.linspace(nominal, tuning.JUMP_MAX_STANCE_S, 12)
+    shorter = np.linspace(nominal, tuning.JUMP_MIN_STANCE_S, 6)[1:]
+    for duration in (*longer, *shorter):
+        force = sign * velocity / duration - gravity
+        if in_cone(force, axis, mu):
+            return float(duration), True
+    return nominal, False
+
+
+def _reach(state: ContactState, com: FloatArray) -> float:
+    """m the COM may travel in a push or landing on ``state``: ``JUMP_CROUCH_SHARE`` of its
+    height ``com`` (3,) above the mean contact point."""
+    if not state.contacts:
+        return 0.0
+    floor = float(np.mean([c.points[:, 2].mean() for c in state.contacts]))
+    return tuning.JUMP_CROUCH_SHARE * max(float(com[2]) - floor, 0.0)
+
+
+def _quadratic(p0: FloatArray, p1: FloatArray, p2: FloatArray, t0: float, t1: float) -> Any:
+    return trajectory.BezierCurve(np.array([p0, p1, p2], dtype=np.float64), t0, t1)
+
+
+def _shift(a: FloatArray, b: FloatArray, t0: float, min_s: float) -> Any:
+    """Rest-to-rest quintic from ``a`` to ``b`` (3,) starting at ``t0``."""
+    curve, times = rest_to_rest(
+        np.stack([a, b]), min_durations=[min_s], max_acceleration=tuning.JUMP_SHIFT_ACCELERATION
+    )
+    control = curve.segments[0].control_points
+    return trajectory.BezierCurve(control, t0, t0 + float(times[-1]))
+
+
+def _aimed(
+    posture: FloatArray, stance_q: FloatArray, com: FloatArray, stance_com: FloatArray
+) -> FloatArray:
+    """``posture`` (nq,) with its root where the root of ``stance_q`` would be with the COM
+    at ``com`` instead of ``stance_com`` (3,): the trunk height aimed at a phase's start."""
+    out = np.array(posture, dtype=np.float64)
+    out[:3] = np.asarray(stance_q[:3]) + com - stance_com
+    return out
+
+
+def _flight_limbs(
+    character: Character, before: ContactState, after: ContactState
+) -> tuple[FlightLimb, ...]:
+    """Limbs in contact at takeoff or landing, carried from their pose in ``before`` to
+    their pose in ``after``; tucked toward their natural-posture offset from the COM,
+    raised by ``FLIGHT_TUCK_LIFT``."""
+    model = character.model
+    natural = np.array(character.q_ref, dtype=np.float64)
+    natural[:7] = after.q[:7]
+    com_natural = com_position(model, natural)
+    names = list(dict.fromkeys([*before.limbs, *after.limbs]))
+    out = []
+    for name in names:
+        frame = character.limb(name).effector_frame
+        start_contact, end_contact = before.contact(name), after.contact(name)
+        start = (
+            np.asarray(start_contact.placement)
+            if start_contact is not None
+            else frame_placement(model, before.q, frame)
+        )
+        end = (
+            np.asarray(end_contact.placement)
+            if end_contact is not None
+            else frame_placement(model, after.q, frame)
+        )
+        tuck = frame_placement(model, natural, frame)[:3, 3] - com_natural
+        tuck[2] += tuning.FLIGHT_TUCK_LIFT
+        out.append(FlightLimb(name, start, end, tuck))
+    return tuple(out)
+
+
+def jump_spec(
+    character: Character,
+    stances: Sequence[ContactState],
+    legs: Sequence[JumpLeg],
+    *,
+    rate: float = 30.0,
+) -> tuple[MotionSpec, tuple[JumpTiming, ...]]:
+    """The phases and COM curve of ``legs`` (k >= 0 jumps) between ``stances`` (k + 1
+    whole-body contact states, the nodes), and each jump's timing. The motion starts at
+    rest in ``stances[0].q`` and ends at rest with the COM of ``stances[-1].q`` (without a
+    jump, it stands still for ``JUMP_MIN_SHIFT_S``)."""
+    if len(stances) != len(legs) + 1:
+        raise ValueError("need k + 1 stances for k jumps")
+    model = character.model
+    coms = [com_position(model, np.asarray(s.q)) for s in stances]
+    segments: list[Any] = []
+    phases: list[MotionPhase] = []
+    timings: list[JumpTiming] = []
+    t = 0.0
+    here = coms[0]
+    for i, leg in enumerate(legs):
+        before, after = stances[i], stances[i + 1]
+        g = leg.gravity
+        push_s, push_ok = stance_duration(
+            leg.v0, g, leg.takeoff_axis, leg.takeoff_mu, _reach(before, coms[i]), landing=False
+        )
+        land_s, land_ok = stance_duration(
+            leg.vimp,
+            g,
+            leg.landing_axis,
+            leg.landing_mu,
+            _reach(after, coms[i + 1]),
+            landing=True,
+        )
+        crouch = leg.com0 - 0.5 * push_s * leg.v0
+        com1 = leg.com1
+        rest = com1 + 0.5 * land_s * leg.vimp
+        # shift into the crouch, on the takeoff contacts
+        shift = _shift(here, crouch, t, tuning.JUMP_MIN_SHIFT_S)
+        segments.append(shift)
+        posture = _aimed(np.asarray(before.q), before.q, here, coms[i])
+        phases.append(
+            MotionPhase(
+                t,
+                shift.t1,
+                before.contacts,
+                posture,
+                level_trunk=False,
+                fast_com=True,
+                rigid_stance=True,
+            )
+        )
+        t_crouch, t = t, shift.t1
+        # the push: from rest to v0 at constant acceleration
+        segments.append(_quadratic(crouch, crouch, leg.com0, t, t + push_s))
+        posture = _aimed(np.asarray(before.q), before.q, crouch, coms[i])
+        phases.append(
+            MotionPhase(
+                t,
+                t + push_s,
+                before.contacts,
+                posture,
+                level_trunk=False,
+                fast_com=True,
+                rigid_stance=True,
+            )
+        )
+        t_push, t = t, t + push_s
+        # the flight: the parabola itself
+        big_t = leg.duration
+        segments.append(_quadratic(leg.com0, leg.com0 + 0.5 * big_t * leg.v0, com1, t, t + big_t))
+        flight_posture = natural_posture(character, np.asarray(after.q), after.limbs)
+        flight_posture = _aimed(flight_posture, before.q, leg.com0, coms[i])
+        phases.append(
+            MotionPhase(
+                t,
+                t + big_t,
+                (),
+                flight_posture,
+                level_trunk=False,
+                flight=_flight_limbs(character, before, after),
+            )
+        )
+        t_takeoff, t = t, t + big_t
+        apex = t_takeoff + min(max(float(leg.v0[2]) / leg.g, 0.0), big_t)
+        # the landing: from the impact velocity to rest at constant deceleration
+        segments.append(_quadratic(com1, rest, rest, t, t + land_s))
+        posture = _aimed(np.asarray(after.q), after.q, com1, coms[i + 1])
+        phases.append(
+            MotionPhase(
+                t,
+                t + land_s,
+                after.contacts,
+                posture,
+                level_trunk=False,
+                fast_com=True,
+                rigid_stance=True,
+            )
+        )
+        t_touchdown, t = t, t + land_s
+        timings.append(
+            JumpTiming(
+                t_crouch,
+                t_push,
+                t_takeoff,
+                apex,
+                t_touchdown,
+                t,
+                np.asarray(leg.v0 / push_s, dtype=np.float64),
+                np.asarray(-leg.vimp / land_s, dtype=np.float64),
+                push_ok,
+                land_ok,
+            )
+        )
+        here = rest
+    # stand up on the last landing's contacts
+    last = stances[-1]
+    shift = _shift(here, coms[-1], t, tuning.JUMP_MIN_SHIFT_S)
+    segments.append(shift)
+    posture = _aimed(np.asarray(last.q), last.q, here, coms[-1])
+    phases.append(
+        MotionPhase(
+            t, shift.t1, last.contacts, posture, level_trunk=False, fast_com=True, rigid_stance=True
+        )
+    )
+    curve = trajectory.PiecewiseBezier(tuple(segments))
+    spec = MotionSpec(np.asarray(stances[0].q, dtype=np.float64), tuple(phases), curve, rate)
+    return spec, tuple(timings)
+
+
+def build_jumps(
+    character: Character,
+    scene_bvh: Any,
+    stances: Sequence[ContactState],
+    legs: Sequence[JumpLeg],
+    *,
+    rate: float = 30.0,
+    until: Termination = never,
+) -> tuple[BuiltMotion, tuple[JumpTiming, ...]]:
+    """Keyframes, phases, COM curve and report of ``legs`` between ``stances`` in the scene
+    ``scene_bvh`` (coal BVH), every keyframe checked (see :func:`build_motion`)."""
+    spec, timings = jump_spec(character, stances, legs, rate=rate)
+    return build_motion(character, scene_bvh, spec, until=until), timings
