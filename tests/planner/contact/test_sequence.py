@@ -9,6 +9,8 @@ from hypothesis import strategies as st
 
 from planner.contact.sequence import (
     ADVANCE_SHARE,
+    CLIMB_ADVANCE_SHARE,
+    CLIMB_SHARE,
     ROUGH_ADVANCE,
     ROUGH_LOOKAHEAD,
     STRIDE_SHARE,
@@ -77,11 +79,21 @@ def test_gait_lengths_scale_with_the_legs_unless_given() -> None:
     gait = gait_lengths(legs, ["left", "right"], SequenceParams())
     assert gait.open_lookahead == pytest.approx(STRIDE_SHARE * np.hypot(0.1, 1.0))
     assert gait.open_advance == pytest.approx(ADVANCE_SHARE * gait.open_lookahead)
-    assert gait.of(False) == (ROUGH_LOOKAHEAD, ROUGH_ADVANCE)
+    # a biped on its legs alone climbs a tread per step off open ground; with a hand on a
+    # rail or a wall, or stuck, it takes the rough lengths
+    length = np.hypot(0.1, 1.0)
+    assert gait.of(False) == pytest.approx(
+        (CLIMB_SHARE * length, CLIMB_ADVANCE_SHARE * CLIMB_SHARE * length)
+    )
+    assert gait.of(False, stuck=True) == (ROUGH_LOOKAHEAD, ROUGH_ADVANCE)
+    handed = gait_lengths(legs, ["left", "right"], SequenceParams(), legs_only=False)
+    assert handed.of(False) == (ROUGH_LOOKAHEAD, ROUGH_ADVANCE)
+    assert handed.of(True) == gait.of(True)
     short = {k: 0.2 * v for k, v in legs.items()}
     small = gait_lengths(short, ["left", "right"], SequenceParams())
     assert (
         small.rough_lookahead <= small.open_lookahead and small.rough_advance <= small.open_advance
     )
+    assert small.of(False) == (small.rough_lookahead, small.rough_advance)  # no climb gait
     given = gait_lengths(legs, ["left", "right"], SequenceParams(lookahead=0.3, advance=0.2))
     assert given.of(True) == given.of(False) == (0.3, 0.2)
