@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import logging
+import os
+import tempfile
+from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import trimesh
@@ -11,16 +14,16 @@ from fastapi import APIRouter, Query, Request
 from fastapi.responses import Response
 from starlette.status import HTTP_204_NO_CONTENT
 
-from planner.scene import Scene, SceneError, load_mesh
+from planner.scene import Scene
 from service import convert
 from service.deps import RegistryDep, SettingsDep
 from service.errors import ApiError, not_found
 from service.export import scene_glb_bytes
 from service.interactive import RETRY_HEADER
-from service.lanes import Gate
+from service.lanes import Lane
 from service.registry import Registry
 from service.schemas import ErrorBody, SceneDetail, SceneSummary
-from service.settings import Settings
+from service.uploads import ingest_upload, quota_exceeded, scene_summary_json
 
 router = APIRouter(prefix="/v1/scenes", tags=["scenes"])
 _404: dict[int | str, dict[str, Any]] = {404: {"model": ErrorBody, "description": "unknown scene"}}
@@ -37,18 +40,40 @@ async def _scene(registry: Registry, scene_id: str) -> Scene:
 
 
 @router.get("")
-async def list_scenes(registry: RegistryDep) -> list[SceneSummary]:
-    """Built-in scenes first, then uploaded ones (a stored scene that cannot be read is left
-    out and logged: one broken file must not fail the listing for everyone)."""
+async def list_scenes(request: Request, registry: RegistryDep) -> list[SceneSummary]:
+    """Built-in scenes first, then uploaded ones, from their stored metadata (no uploaded
+    scene is loaded; one stored before summaries were is loaded once, in the uploads lane,
+    and its summary stored). A stored scene that cannot be read is left out and logged: one
+    broken file must not fail the listing for everyone."""
     out = []
-    for scene_id in registry.scene_ids():
-        try:
-            scene = await to_thread.run_sync(registry.get_scene, scene_id)
+    for scene_id in registry.builtin_scene_ids():
+        scene = await to_thread.run_sync(registry.get_scene, scene_id)
+        if scene is not None:
+            out.append(convert.scene_summary(scene, builtin=True))
+    stored = await to_thread.run_sync(_stored_summaries, registry)
+    lane: Lane = request.app.state.lanes.uploads
+    for scene_id, summary in stored:
+        if summary is not None:
+            out.append(summary)
+            continue
+        try:  # metadata older than summaries: upgraded once, off the event loop's process
+            upgraded = await lane.run(scene_summary_json, scene_id)
         except Exception as exc:
             log.error("scene %s cannot be loaded: %s: %s", scene_id, type(exc).__name__, exc)
             continue
-        if scene is not None:  # None: deleted since the ids were read
-            out.append(convert.scene_summary(scene, registry.is_builtin(scene_id)))
+        if upgraded is not None:  # None: deleted since the ids were read
+            out.append(SceneSummary.model_validate(upgraded))
+    return out
+
+
+def _stored_summaries(registry: Registry) -> list[tuple[str, SceneSummary | None]]:
+    """Each uploaded scene's id and stored summary (None where the metadata has none)."""
+    out: list[tuple[str, SceneSummary | None]] = []
+    for scene_id in registry.uploaded_scene_ids():
+        summary = registry.scene_summary(scene_id)
+        out.append(
+            (scene_id, None if summary is None else convert.stored_summary(scene_id, summary))
+        )
     return out
 
 
@@ -103,29 +128,46 @@ async def get_scene_mesh(
     return Response(stl, media_type="model/stl")
 
 
-async def _read_body(request: Request, limit: int) -> bytes:
+async def _receive_body(request: Request, limit: int, directory: Path) -> Path:
+    """Stream the request body into a temporary file in ``directory`` (removed again on any
+    error); a 413 past ``limit`` bytes (declared or received), a 422 when it is empty."""
     declared = request.headers.get("content-length")
     if declared is not None and declared.isdigit() and int(declared) > limit:
-        message = f"mesh body is {declared} bytes; limit {limit}"
+        message = f"mesh body is {declared} bytes; limit {limit} (GECKO_MAX_UPLOAD_BYTES)"
         raise ApiError(413, "too_large", message, "body")
-    chunks: list[bytes] = []
-    size = 0
-    async for chunk in request.stream():
-        size += len(chunk)
-        if size > limit:
-            raise ApiError(
-                413, "too_large", f"mesh body exceeds the limit of {limit} bytes", "body"
-            )
-        chunks.append(chunk)
-    return b"".join(chunks)
+    directory.mkdir(parents=True, exist_ok=True)
+    fd, name = tempfile.mkstemp(dir=directory, prefix=".tmp-upload-", suffix=".tmp")
+    path = Path(name)
+    try:
+        size = 0
+        with os.fdopen(fd, "wb") as handle:
+            async for chunk in request.stream():
+                size += len(chunk)
+                if size > limit:
+                    message = (
+                        f"mesh body exceeds the limit of {limit} bytes (GECKO_MAX_UPLOAD_BYTES)"
+                    )
+                    raise ApiError(413, "too_large", message, "body")
+                handle.write(chunk)  # a page-cache write of one chunk (~64 KB): microseconds
+        if size == 0:
+            raise ApiError(422, "invalid_mesh", "the request body is empty", "body")
+    except BaseException:
+        path.unlink(missing_ok=True)
+        raise
+    return path
 
 
 @router.post(
     "",
     status_code=201,
     responses={
-        413: {"model": ErrorBody, "description": "body or triangle count over the limit"},
+        413: {
+            "model": ErrorBody,
+            "description": "body, triangle or vertex count (after instancing) over the limit",
+        },
         422: {"model": ErrorBody, "description": "corrupt, empty or non-finite mesh"},
+        507: {"model": ErrorBody, "description": "the uploaded scenes' quota is full"},
+        504: {"model": ErrorBody, "description": "parsing and building took too long"},
         503: {
             "model": ErrorBody,
             "description": "too many uploads waiting (queue_full), with Retry-After",
@@ -151,46 +193,31 @@ async def upload_scene(
 ) -> SceneDetail:
     """Upload a mesh as the raw request body; its id is a content hash of the mesh.
 
-    Uploads are parsed one at a time per service worker; a few wait in line (a 503 with
-    Retry-After past ``GECKO_UPLOAD_QUEUE``, before the body is read)."""
-    gate: Gate = request.app.state.lanes.uploads
-    ticket = gate.admit()
+    The body goes to a temporary file; a process of the uploads lane reads its triangle count
+    (after instancing, for glTF) before parsing, then parses it and builds the scene, one
+    upload at a time per service worker. A few wait in line (a 503 with Retry-After past
+    ``GECKO_UPLOAD_QUEUE``, before the body is read)."""
+    lane: Lane = request.app.state.lanes.uploads
+    ticket = lane.admit()
     try:
-        return await _upload(request, registry, settings, gate, format, name, y_up)
+        used = await to_thread.run_sync(registry.uploaded_bytes)
+        if used >= settings.scenes_quota_bytes:
+            raise quota_exceeded(
+                f"uploaded scenes take {used} bytes, the quota of {settings.scenes_quota_bytes}"
+            )
+        body = await _receive_body(request, settings.max_upload_bytes, settings.scenes_path)
+        try:
+            detail = await lane.run(
+                ingest_upload,
+                str(body),
+                format,
+                name,
+                y_up,
+                ticket=ticket,
+                run_for_s=settings.upload_timeout_s,
+            )
+        finally:
+            body.unlink(missing_ok=True)
     finally:
         ticket.release()
-
-
-async def _upload(
-    request: Request,
-    registry: Registry,
-    settings: Settings,
-    gate: Gate,
-    format: UploadFormat,
-    name: str,
-    y_up: bool,
-) -> SceneDetail:
-    body = await _read_body(request, settings.max_upload_bytes)
-    if not body:
-        raise ApiError(422, "invalid_mesh", "the request body is empty", "body")
-
-    def build() -> Scene:
-        try:
-            mesh = load_mesh(body, format, y_up=y_up)
-        except SceneError as exc:
-            raise ApiError(422, "invalid_mesh", str(exc), "body") from exc
-        if len(mesh.faces) > settings.max_triangles:
-            raise ApiError(
-                413,
-                "too_large",
-                f"mesh has {len(mesh.faces)} triangles; limit {settings.max_triangles}",
-                "body",
-            )
-        return registry.add_uploaded_scene(mesh, name)
-
-    await gate.take_slot()
-    try:
-        scene = await to_thread.run_sync(build)
-    finally:
-        gate.give_slot()
-    return convert.scene_detail(scene, builtin=False)
+    return SceneDetail.model_validate(detail)
