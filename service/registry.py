@@ -1,8 +1,9 @@
 """The service's registry: characters with their offline data, built-in and uploaded scenes.
 
-Uploaded scenes are stored as ``<id>.npz`` (float64 vertices, int64 faces) plus ``<id>.json``
-(name and summary: counts and bounds, so listings never load a scene) in the scenes directory;
-both are written to temporary files and renamed into place, so a failed upload leaves nothing
+Uploaded scenes are stored in the scenes directory as ``<id>.npz`` (float64 vertices, int64
+faces), ``<id>.json`` (name and summary: counts and bounds, so listings never load a scene) and
+``<id>.detail.json`` (details with surfaces, as the API answers them). All are written to
+temporary files and renamed into place, metadata last, so a failed upload leaves nothing
 behind. Together they are bounded by a quota; in memory, a few recently used ones are kept.
 """
 
@@ -15,7 +16,7 @@ import os
 import tempfile
 import threading
 from collections import OrderedDict
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -46,6 +47,7 @@ from service.files import is_temporary
 log = logging.getLogger("gecko.registry")
 META_VERSION = 2  # metadata with a stored summary (version 1: the name only)
 META_ALLOWANCE_BYTES = 4096  # room kept for a scene's metadata file before it is written
+DETAIL_SUFFIX = ".detail.json"  # an uploaded scene's details (surfaces), as GET answers them
 LOCK_FILE = ".lock"  # in the scenes directory: serialises quota checks across processes
 
 
@@ -128,7 +130,9 @@ class Registry:
         return sorted(
             path.stem
             for path in self.scenes_dir.glob("*.json")
-            if not is_temporary(path.name) and _is_safe_id(path.stem)
+            if not is_temporary(path.name)
+            and not path.name.endswith(DETAIL_SUFFIX)
+            and _is_safe_id(path.stem)
         )
 
     def scene_ids(self) -> list[str]:
@@ -227,15 +231,21 @@ class Registry:
         return total
 
     def add_uploaded_scene(
-        self, mesh: trimesh.Trimesh, name: str, *, quota_bytes: int | None = None
+        self,
+        mesh: trimesh.Trimesh,
+        name: str,
+        *,
+        quota_bytes: int | None = None,
+        describe: Callable[[Scene], str] | None = None,
     ) -> Scene:
         """Build a scene from an uploaded mesh and persist it atomically; returns the scene.
 
         The id is a content hash of the mesh, so uploading the same mesh twice gives one id
-        (and takes no more room). ``quota_bytes`` bounds :meth:`uploaded_bytes` after the
-        write: the mesh file is written and measured before surfaces and BVH are built, and
-        the check is repeated under a lock shared by every process before the files are
-        renamed into place. Raises :class:`QuotaExceeded` past it.
+        (and takes no more room). ``describe(scene)``, when given, is the scene's details
+        (JSON text) stored beside it for :meth:`stored_detail`. ``quota_bytes`` bounds
+        :meth:`uploaded_bytes` after the write: the mesh file is written and measured before
+        surfaces and BVH are built, and the check is repeated under a lock shared by every
+        process before the files are renamed into place. Raises :class:`QuotaExceeded`.
         """
         vertices, faces = validate_arrays(mesh.vertices, mesh.faces)
         scene_id = content_hash(vertices, faces)
@@ -247,29 +257,53 @@ class Registry:
             vertices=np.asarray(vertices, dtype=np.float64),
             faces=np.asarray(faces, dtype=np.int64),
         )
-        meta_tmp: Path | None = None
+        written = [mesh_tmp]
         try:
             mesh_bytes = mesh_tmp.stat().st_size
             if quota_bytes is not None:
                 self._check_quota(quota_bytes, mesh_bytes + META_ALLOWANCE_BYTES)
             scene = build_scene(mesh, scene_id=scene_id, name=name, cache_dir=self.cache_dir)
-            meta_text = json.dumps(StoredSummary.of(scene).to_meta())
-            meta_tmp = _temporary_text(self.scenes_dir, meta_text, ".json")
+            files = {self._mesh_file(scene_id): mesh_tmp}
+            if describe is not None:
+                detail_tmp = _temporary_text(self.scenes_dir, describe(scene), ".json")
+                written.append(detail_tmp)
+                files[self._detail_file(scene_id)] = detail_tmp
+            meta_tmp = _temporary_text(
+                self.scenes_dir, json.dumps(StoredSummary.of(scene).to_meta()), ".json"
+            )
+            written.append(meta_tmp)
+            # The metadata goes last: with it the scene is listed, and its other files are there.
+            files[self._meta_file(scene_id)] = meta_tmp
             with _scenes_lock(self.scenes_dir):
                 if quota_bytes is not None:
                     try:
-                        self._check_quota(quota_bytes, mesh_bytes + len(meta_text.encode()))
+                        self._check_quota(quota_bytes, sum(p.stat().st_size for p in written))
                     except QuotaExceeded:
                         bvh_cache_path(self.cache_dir, scene.content_hash).unlink(missing_ok=True)
                         raise
-                # The metadata goes last: with it the scene is listed, and its mesh is there.
-                os.replace(mesh_tmp, self._mesh_file(scene_id))
-                os.replace(meta_tmp, self._meta_file(scene_id))
+                for final, temporary in files.items():
+                    os.replace(temporary, final)
         finally:
-            mesh_tmp.unlink(missing_ok=True)
-            if meta_tmp is not None:
-                meta_tmp.unlink(missing_ok=True)
+            for temporary in written:
+                temporary.unlink(missing_ok=True)
         return self._keep(scene, builtin=False)
+
+    def stored_detail(self, scene_id: str) -> str | None:
+        """An uploaded scene's details as stored at upload (JSON text); None if unknown or
+        stored without them."""
+        if self.is_builtin(scene_id) or not _is_safe_id(scene_id):
+            return None
+        if not self._meta_file(scene_id).exists():
+            return None
+        try:
+            return self._detail_file(scene_id).read_text()
+        except OSError:
+            return None
+
+    def store_detail(self, scene_id: str, text: str) -> None:
+        """Store the details (JSON text) of an uploaded scene stored without them."""
+        if _is_safe_id(scene_id) and self._meta_file(scene_id).exists():
+            _atomic_write_text(self._detail_file(scene_id), text)
 
     def _check_quota(self, quota_bytes: int, adding: int) -> None:
         used = self.uploaded_bytes()
@@ -281,6 +315,9 @@ class Registry:
 
     def _mesh_file(self, scene_id: str) -> Path:
         return self.scenes_dir / f"{scene_id}.npz"
+
+    def _detail_file(self, scene_id: str) -> Path:
+        return self.scenes_dir / f"{scene_id}{DETAIL_SUFFIX}"
 
     def delete_uploaded_scene(self, scene_id: str) -> bool:
         """Remove an uploaded scene: its mesh, its metadata, its cached BVH and its place in
@@ -294,6 +331,7 @@ class Registry:
             # The metadata goes first: without it the scene is no longer listed nor loaded.
             meta_file.unlink(missing_ok=True)
             self._mesh_file(scene_id).unlink(missing_ok=True)
+            self._detail_file(scene_id).unlink(missing_ok=True)
         with self._lock:
             scene = self._uploaded.pop(scene_id, None)
         # An uploaded scene's id is its content hash, which also keys its BVH cache file.

@@ -15,11 +15,13 @@ the BVH ever holds the event loop (or /health). The work is ordered cheapest ref
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
-from planner.scene import SceneError, load_mesh
+from planner.scene import Scene, SceneError, content_hash, load_mesh
 from planner.scene.counts import count_mesh
+from planner.scene.io import validate_arrays
 from service import convert
 from service.errors import ApiError
 from service.registry import QuotaExceeded
@@ -83,11 +85,36 @@ def ingest_upload(body_path: str, fmt: str, name: str, y_up: bool) -> dict[str, 
             f"mesh has {len(mesh.faces)} triangles; limit {settings.max_triangles} "
             "(GECKO_MAX_TRIANGLES)"
         )
+    scene_id = content_hash(*validate_arrays(mesh.vertices, mesh.faces))
+    stored = registry.stored_detail(scene_id)
+    if stored is not None:  # uploaded before: nothing to build
+        return dict(json.loads(stored))
     try:
-        scene = registry.add_uploaded_scene(mesh, name, quota_bytes=settings.scenes_quota_bytes)
+        scene = registry.add_uploaded_scene(
+            mesh, name, quota_bytes=settings.scenes_quota_bytes, describe=_detail_text
+        )
     except QuotaExceeded as exc:
         raise quota_exceeded(str(exc)) from exc
     return convert.scene_detail(scene, builtin=False).model_dump(mode="json")
+
+
+def _detail_text(scene: Scene) -> str:
+    return convert.scene_detail(scene, builtin=False).model_dump_json()
+
+
+def scene_detail_json(scene_id: str) -> dict[str, Any] | None:
+    """An uploaded scene's details, built (and stored) for a scene stored without them;
+    None if unknown. Runs in a worker process."""
+    registry = worker_registry()
+    stored = registry.stored_detail(scene_id)
+    if stored is not None:
+        return dict(json.loads(stored))
+    scene = registry.get_scene(scene_id)
+    if scene is None or registry.is_builtin(scene_id):
+        return None
+    text = _detail_text(scene)
+    registry.store_detail(scene_id, text)
+    return dict(json.loads(text))
 
 
 def scene_summary_json(scene_id: str) -> dict[str, Any] | None:

@@ -23,7 +23,12 @@ from service.interactive import RETRY_HEADER
 from service.lanes import Lane
 from service.registry import Registry
 from service.schemas import ErrorBody, SceneDetail, SceneSummary
-from service.uploads import ingest_upload, quota_exceeded, scene_summary_json
+from service.uploads import (
+    ingest_upload,
+    quota_exceeded,
+    scene_detail_json,
+    scene_summary_json,
+)
 
 router = APIRouter(prefix="/v1/scenes", tags=["scenes"])
 _404: dict[int | str, dict[str, Any]] = {404: {"model": ErrorBody, "description": "unknown scene"}}
@@ -77,11 +82,26 @@ def _stored_summaries(registry: Registry) -> list[tuple[str, SceneSummary | None
     return out
 
 
-@router.get("/{scene_id}", responses=_404)
-async def get_scene(scene_id: str, registry: RegistryDep) -> SceneDetail:
-    """Bounds, triangle count and affordance surfaces (polygons, normals, kinds, areas)."""
-    scene = await _scene(registry, scene_id)
-    return convert.scene_detail(scene, registry.is_builtin(scene_id))
+@router.get("/{scene_id}", responses=_404, response_model=SceneDetail)
+async def get_scene(scene_id: str, request: Request, registry: RegistryDep) -> Response:
+    """Bounds, triangle count and affordance surfaces (polygons, normals, kinds, areas).
+
+    An uploaded scene's details were stored at upload: they are answered as stored, without
+    loading the scene (one stored before is built once in the uploads lane)."""
+    if registry.is_builtin(scene_id):
+        scene = await _scene(registry, scene_id)
+        detail = convert.scene_detail(scene, builtin=True)
+        return Response(detail.model_dump_json(), media_type="application/json")
+    stored = await to_thread.run_sync(registry.stored_detail, scene_id)
+    if stored is not None:
+        return Response(stored, media_type="application/json")
+    lane: Lane = request.app.state.lanes.uploads
+    built = await lane.run(scene_detail_json, scene_id)
+    if built is None:
+        raise not_found("scene", scene_id, "scene_id")
+    return Response(
+        SceneDetail.model_validate(built).model_dump_json(), media_type="application/json"
+    )
 
 
 @router.delete(

@@ -132,7 +132,8 @@ def test_oversized_files_are_refused_before_parsing_while_health_answers(
     assert len(probe.latencies) >= 10
     assert max(probe.latencies) < HEALTH_LIMIT_S, sorted(probe.latencies)[-5:]
     names = sorted(path.name for path in scenes.iterdir() if not path.name.startswith("."))
-    assert names == [f"{built.json()['id']}.json", f"{built.json()['id']}.npz"]
+    scene_id = built.json()["id"]
+    assert names == [f"{scene_id}.detail.json", f"{scene_id}.json", f"{scene_id}.npz"]
     assert httpx.delete(f"{url}/v1/scenes/{built.json()['id']}", timeout=30).status_code == 204
 
 
@@ -209,6 +210,9 @@ async def test_after_a_restart_the_listing_loads_no_uploaded_scene(tmp_path: Pat
                 "surface_count": len(created.json()["surfaces"]),
             }
         ]
+        detail = await http.get(f"/v1/scenes/{scene_id}")
+        assert detail.status_code == 200, detail.text
+        assert detail.json() == created.json()
         registry: Registry = app.state.registry
         assert registry.loaded_scene_ids() == []
         assert app.state.lanes.uploads.pids() == {"idle": [], "busy": []}
@@ -223,6 +227,7 @@ async def test_metadata_stored_before_summaries_is_upgraded_once(tmp_path: Path)
         created = (await http.post("/v1/scenes?format=stl&name=old", content=_box_stl(3.0))).json()
     meta = settings.scenes_path / f"{created['id']}.json"
     meta.write_text(json.dumps({"name": "old"}))  # what uploads stored before summaries
+    (settings.scenes_path / f"{created['id']}.detail.json").unlink()  # and before details
     async with _serve(settings) as (app, http):
         listing = (await http.get("/v1/scenes")).json()
         assert {"id": created["id"], "name": "old", "triangle_count": 12} == {
@@ -232,10 +237,15 @@ async def test_metadata_stored_before_summaries_is_upgraded_once(tmp_path: Path)
             for key, value in scene.items()
             if key in ("id", "name", "triangle_count")
         }
+        detail = await http.get(f"/v1/scenes/{created['id']}")
+        assert detail.status_code == 200, detail.text
+        assert detail.json() == created
         assert app.state.registry.loaded_scene_ids() == []  # loaded in the uploads lane
     stored = json.loads(meta.read_text())
     assert stored["version"] == 2 and stored["triangle_count"] == 12
     assert stored["surface_count"] == len(created["surfaces"])
+    detail_file = settings.scenes_path / f"{created['id']}.detail.json"
+    assert json.loads(detail_file.read_text()) == created
 
 
 def test_loaded_uploaded_scenes_are_bounded_and_reload_on_use(tmp_path: Path) -> None:
