@@ -237,6 +237,7 @@ class Registry:
         *,
         quota_bytes: int | None = None,
         describe: Callable[[Scene], str] | None = None,
+        keep: bool = True,
     ) -> Scene:
         """Build a scene from an uploaded mesh and persist it atomically; returns the scene.
 
@@ -246,6 +247,7 @@ class Registry:
         :meth:`uploaded_bytes` after the write: the mesh file is written and measured before
         surfaces and BVH are built, and the check is repeated under a lock shared by every
         process before the files are renamed into place. Raises :class:`QuotaExceeded`.
+        ``keep=False``: the new scene is not held in memory (a process that only stores).
         """
         vertices, faces = validate_arrays(mesh.vertices, mesh.faces)
         scene_id = content_hash(vertices, faces)
@@ -286,6 +288,10 @@ class Registry:
         finally:
             for temporary in written:
                 temporary.unlink(missing_ok=True)
+        if not keep:
+            with self._lock:
+                self._scene_loads += 1
+            return scene
         return self._keep(scene, builtin=False)
 
     def stored_detail(self, scene_id: str) -> str | None:

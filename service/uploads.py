@@ -15,7 +15,6 @@ the BVH ever holds the event loop (or /health). The work is ordered cheapest ref
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
@@ -57,19 +56,24 @@ def check_counts(data: bytes, fmt: str, settings: Settings) -> None:
         return
     if counts.triangles > settings.max_triangles:
         raise too_large(
-            f"the {fmt.upper()} file holds {counts.triangles} triangles (after instancing); "
+            f"the {fmt.upper()} file holds {counts.triangles} triangles{_instanced(fmt)}; "
             f"limit {settings.max_triangles} (GECKO_MAX_TRIANGLES)"
         )
     if counts.vertices > settings.max_vertices:
         raise too_large(
-            f"the {fmt.upper()} file holds {counts.vertices} vertices (after instancing); "
+            f"the {fmt.upper()} file holds {counts.vertices} vertices{_instanced(fmt)}; "
             f"limit {settings.max_vertices} (3 x GECKO_MAX_TRIANGLES)"
         )
 
 
-def ingest_upload(body_path: str, fmt: str, name: str, y_up: bool) -> dict[str, Any]:
+def _instanced(fmt: str) -> str:
+    return " (after instancing)" if fmt in ("glb", "gltf") else ""
+
+
+def ingest_upload(body_path: str, fmt: str, name: str, y_up: bool) -> str:
     """Check, parse, build and store the mesh file at ``body_path`` (the caller removes it);
-    the new scene's details as a JSON-ready dict. Errors are :class:`ApiError` (413, 422,
+    the new scene's details as JSON text (answered as is: the service process neither
+    validates nor serialises it again). Errors are :class:`ApiError` (413, 422,
     507). Runs in a worker process (it uses that process's registry and settings)."""
     settings = worker_settings()
     registry = worker_registry()
@@ -88,33 +92,39 @@ def ingest_upload(body_path: str, fmt: str, name: str, y_up: bool) -> dict[str, 
     scene_id = content_hash(*validate_arrays(mesh.vertices, mesh.faces))
     stored = registry.stored_detail(scene_id)
     if stored is not None:  # uploaded before: nothing to build
-        return dict(json.loads(stored))
+        return stored
+    described: list[str] = []
+
+    def describe(scene: Scene) -> str:
+        described.append(_detail_text(scene))
+        return described[-1]
+
     try:
         scene = registry.add_uploaded_scene(
-            mesh, name, quota_bytes=settings.scenes_quota_bytes, describe=_detail_text
+            mesh, name, quota_bytes=settings.scenes_quota_bytes, describe=describe, keep=False
         )
     except QuotaExceeded as exc:
         raise quota_exceeded(str(exc)) from exc
-    return convert.scene_detail(scene, builtin=False).model_dump(mode="json")
+    return described[-1] if described else _detail_text(scene)  # else: stored meanwhile
 
 
 def _detail_text(scene: Scene) -> str:
     return convert.scene_detail(scene, builtin=False).model_dump_json()
 
 
-def scene_detail_json(scene_id: str) -> dict[str, Any] | None:
-    """An uploaded scene's details, built (and stored) for a scene stored without them;
-    None if unknown. Runs in a worker process."""
+def scene_detail_json(scene_id: str) -> str | None:
+    """An uploaded scene's details (JSON text), built and stored for a scene stored without
+    them; None if unknown. Runs in a worker process."""
     registry = worker_registry()
     stored = registry.stored_detail(scene_id)
     if stored is not None:
-        return dict(json.loads(stored))
+        return stored
     scene = registry.get_scene(scene_id)
     if scene is None or registry.is_builtin(scene_id):
         return None
     text = _detail_text(scene)
     registry.store_detail(scene_id, text)
-    return dict(json.loads(text))
+    return text
 
 
 def scene_summary_json(scene_id: str) -> dict[str, Any] | None:

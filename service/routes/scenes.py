@@ -99,9 +99,7 @@ async def get_scene(scene_id: str, request: Request, registry: RegistryDep) -> R
     built = await lane.run(scene_detail_json, scene_id)
     if built is None:
         raise not_found("scene", scene_id, "scene_id")
-    return Response(
-        SceneDetail.model_validate(built).model_dump_json(), media_type="application/json"
-    )
+    return Response(built, media_type="application/json")
 
 
 @router.delete(
@@ -180,6 +178,7 @@ async def _receive_body(request: Request, limit: int, directory: Path) -> Path:
 @router.post(
     "",
     status_code=201,
+    response_model=SceneDetail,
     responses={
         413: {
             "model": ErrorBody,
@@ -210,7 +209,7 @@ async def upload_scene(
     format: Annotated[UploadFormat, Query(description="mesh file format")],
     name: Annotated[str, Query(max_length=MAX_NAME_LENGTH, description="scene label")] = "",
     y_up: Annotated[bool, Query(description="the file is y-up (converted to z-up)")] = False,
-) -> SceneDetail:
+) -> Response:
     """Upload a mesh as the raw request body; its id is a content hash of the mesh.
 
     The body goes to a temporary file; a process of the uploads lane reads its triangle count
@@ -240,4 +239,4 @@ async def upload_scene(
             body.unlink(missing_ok=True)
     finally:
         ticket.release()
-    return SceneDetail.model_validate(detail)
+    return Response(detail, status_code=201, media_type="application/json")

@@ -263,6 +263,9 @@ def test_loaded_uploaded_scenes_are_bounded_and_reload_on_use(tmp_path: Path) ->
     assert registry.get_scene(ids[2]) is not None  # held: no load
     assert registry.scene_loads == loads + 1
     assert registry.loaded_scene_ids() == [ids[0], ids[2]]
+    stored_only = registry.add_uploaded_scene(load_mesh(_box_stl(4.0), "stl"), "b", keep=False)
+    assert registry.loaded_scene_ids() == [ids[0], ids[2]]
+    assert registry.get_scene(stored_only.id) is not None  # on disk all the same
 
 
 def test_delete_frees_quota_memory_and_the_cached_bvh(tmp_path: Path) -> None:
