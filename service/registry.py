@@ -196,6 +196,28 @@ class Registry:
                 log.debug("scene %s unloaded (least recently used)", evicted)
             return held
 
+    def scene_mesh(self, scene_id: str) -> tuple[str, np.ndarray, np.ndarray] | None:
+        """A scene's name, float64 (n, 3) vertices (metres, world frame) and int64 (m, 3)
+        faces; None if unknown. An uploaded scene not loaded is read from its mesh file, not
+        loaded (no surfaces, no BVH)."""
+        if self.is_builtin(scene_id):
+            builtin = self.get_scene(scene_id)
+            return None if builtin is None else (builtin.name, builtin.vertices, builtin.faces)
+        with self._lock:
+            held = self._uploaded.get(scene_id)
+        if held is not None and self._meta_file(scene_id).exists():
+            return held.name, held.vertices, held.faces
+        if not _is_safe_id(scene_id):
+            return None
+        try:
+            meta = json.loads(self._meta_file(scene_id).read_text())
+            with np.load(self._mesh_file(scene_id)) as arrays:
+                vertices = np.asarray(arrays["vertices"], dtype=np.float64)
+                faces = np.asarray(arrays["faces"], dtype=np.int64)
+        except FileNotFoundError:
+            return None
+        return str(meta.get("name", "")), vertices, faces
+
     def scene_summary(self, scene_id: str) -> StoredSummary | None:
         """An uploaded scene's summary from its stored metadata, without loading the scene;
         None if unknown or stored before summaries were (see :meth:`upgrade_metadata`)."""

@@ -14,11 +14,12 @@ from fastapi import APIRouter, Query, Request
 from fastapi.responses import Response
 from starlette.status import HTTP_204_NO_CONTENT
 
+from planner.export import SceneMesh
 from planner.scene import Scene
 from service import convert
 from service.deps import RegistryDep, SettingsDep
 from service.errors import ApiError, not_found
-from service.export import scene_glb_bytes
+from service.export import scene_glb_bytes, scene_mesh
 from service.interactive import RETRY_HEADER
 from service.lanes import Lane
 from service.registry import Registry
@@ -135,15 +136,22 @@ async def get_scene_mesh(
     format: Literal["stl", "glb"] = Query("stl", description="binary STL or GLB"),
 ) -> Response:
     """The scene's triangle mesh in metres: STL in Gecko's world (z up), GLB in glTF's
-    (y up; Gecko's (x, y, z) is glTF's (x, z, -y))."""
-    scene = await _scene(registry, scene_id)
+    (y up; Gecko's (x, y, z) is glTF's (x, z, -y)). An uploaded scene is read from its mesh
+    file, not loaded."""
+    mesh = await to_thread.run_sync(scene_mesh, registry, scene_id)
+    if mesh is None:
+        raise not_found("scene", scene_id, "scene_id")
     if format == "glb":
-        data = await to_thread.run_sync(scene_glb_bytes, scene)
+        data = await to_thread.run_sync(scene_glb_bytes, mesh)
         return Response(data, media_type="model/gltf-binary")
-    mesh = trimesh.Trimesh(scene.vertices, scene.faces, process=False)
-    stl = mesh.export(file_type="stl")
+    data = await to_thread.run_sync(_stl_bytes, mesh)
+    return Response(data, media_type="model/stl")
+
+
+def _stl_bytes(mesh: SceneMesh) -> bytes:
+    stl = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False).export(file_type="stl")
     assert isinstance(stl, bytes)
-    return Response(stl, media_type="model/stl")
+    return stl
 
 
 async def _receive_body(request: Request, limit: int, directory: Path) -> Path:

@@ -7,6 +7,7 @@ files; the only timing asserted is /health's, the figure the service promises un
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import threading
@@ -213,6 +214,11 @@ async def test_after_a_restart_the_listing_loads_no_uploaded_scene(tmp_path: Pat
         detail = await http.get(f"/v1/scenes/{scene_id}")
         assert detail.status_code == 200, detail.text
         assert detail.json() == created.json()
+        for fmt in ("stl", "glb"):
+            mesh = await http.get(f"/v1/scenes/{scene_id}/mesh", params={"format": fmt})
+            assert mesh.status_code == 200, mesh.text
+            loaded = trimesh.load(io.BytesIO(mesh.content), file_type=fmt, force="mesh")
+            assert len(loaded.faces) == 12
         registry: Registry = app.state.registry
         assert registry.loaded_scene_ids() == []
         assert app.state.lanes.uploads.pids() == {"idle": [], "busy": []}
