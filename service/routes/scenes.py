@@ -46,7 +46,9 @@ async def _scene(registry: Registry, scene_id: str) -> Scene:
 
 
 @router.get("")
-async def list_scenes(request: Request, registry: RegistryDep) -> list[SceneSummary]:
+async def list_scenes(
+    request: Request, registry: RegistryDep, settings: SettingsDep
+) -> list[SceneSummary]:
     """Built-in scenes first, then uploaded ones, from their stored metadata (no uploaded
     scene is loaded; one stored before summaries were is loaded once, in the uploads lane,
     and its summary stored). A stored scene that cannot be read is left out and logged: one
@@ -63,7 +65,9 @@ async def list_scenes(request: Request, registry: RegistryDep) -> list[SceneSumm
             out.append(summary)
             continue
         try:  # metadata older than summaries: upgraded once, off the event loop's process
-            upgraded = await lane.run(scene_summary_json, scene_id)
+            upgraded = await lane.run(
+                scene_summary_json, scene_id, run_for_s=settings.upload_timeout_s
+            )
         except Exception as exc:
             log.error("scene %s cannot be loaded: %s: %s", scene_id, type(exc).__name__, exc)
             continue
@@ -84,7 +88,9 @@ def _stored_summaries(registry: Registry) -> list[tuple[str, SceneSummary | None
 
 
 @router.get("/{scene_id}", responses=_404, response_model=SceneDetail)
-async def get_scene(scene_id: str, request: Request, registry: RegistryDep) -> Response:
+async def get_scene(
+    scene_id: str, request: Request, registry: RegistryDep, settings: SettingsDep
+) -> Response:
     """Bounds, triangle count and affordance surfaces (polygons, normals, kinds, areas).
 
     An uploaded scene's details were stored at upload: they are answered as stored, without
@@ -97,7 +103,7 @@ async def get_scene(scene_id: str, request: Request, registry: RegistryDep) -> R
     if stored is not None:
         return Response(stored, media_type="application/json")
     lane: Lane = request.app.state.lanes.uploads
-    built = await lane.run(scene_detail_json, scene_id)
+    built = await lane.run(scene_detail_json, scene_id, run_for_s=settings.upload_timeout_s)
     if built is None:
         raise not_found("scene", scene_id, "scene_id")
     return Response(built, media_type="application/json")
