@@ -159,6 +159,19 @@ def test_the_quota_refuses_an_upload_and_delete_frees_it(
         assert http.delete(f"/v1/scenes/{again.json()['id']}").status_code == 204
 
 
+def test_a_ply_padded_with_vertices_is_refused_by_its_header(
+    upload_server: tuple[str, Path],
+) -> None:
+    url, _ = upload_server
+    header = b"ply\nformat binary_little_endian 1.0\nelement vertex 400000\n"
+    header += b"property float x\nproperty float y\nproperty float z\n"
+    header += b"element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+    body = header + bytes(12 * 400_000) + bytes([3]) + bytes(12)
+    response = httpx.post(f"{url}/v1/scenes", params={"format": "ply"}, content=body, timeout=60)
+    message = _error(response, 413, "too_large")
+    assert "400000 vertices" in message and "limit 300000" in message, message
+
+
 def test_a_mesh_over_the_limit_without_a_header_count_is_refused_after_parsing(
     upload_server: tuple[str, Path],
 ) -> None:
