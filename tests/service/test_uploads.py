@@ -30,12 +30,14 @@ from service.settings import Settings
 from tests.live_server import live_server
 from tests.mesh_files import grid_mesh, grid_ply, instanced_glb
 from tests.paths import gecko_cache_dir
+from tests.prometheus_text import metric_samples, sample_value
 
 HEALTH_LIMIT_S = 0.1  # /health must answer within this while uploads are parsed
 HEALTH_EVERY_S = 0.02
 MiB = 1024 * 1024
 HOUR_S = 3600.0
 QUOTA_BYTES = 4 * MiB  # the test servers' quota of uploaded scenes
+SCENE_SUFFIXES = (".npz", ".json", ".detail.json")  # an uploaded scene's files
 
 
 def _settings(home: Path, **overrides: object) -> Settings:
@@ -122,20 +124,20 @@ def test_oversized_files_are_refused_before_parsing_while_health_answers(
         refused_ply = http.post("/v1/scenes", params={"format": "ply"}, content=ply)
         built = http.post("/v1/scenes", params={"format": "stl", "name": "grid"}, content=accepted)
         time.sleep(5 * HEALTH_EVERY_S)
+    assert built.status_code == 201, built.text
+    scene_id = built.json()["id"]
+    names = sorted(path.name for path in scenes.iterdir() if not path.name.startswith("."))
+    assert httpx.delete(f"{url}/v1/scenes/{scene_id}", timeout=30).status_code == 204
+    assert names == [f"{scene_id}.detail.json", f"{scene_id}.json", f"{scene_id}.npz"]
+    assert built.json()["triangle_count"] == len(grid_mesh(60_000).faces)
     message = _error(refused_glb, 413, "too_large")
     assert "1945600 triangles (after instancing)" in message, message
     assert "limit 100000" in message
     assert "GECKO_MAX_TRIANGLES" in _error(refused_ply, 413, "too_large")
-    assert built.status_code == 201, built.text
-    assert built.json()["triangle_count"] == len(grid_mesh(60_000).faces)
     print(f"refused instanced GLB in {glb_s:.3f} s; /health max {max(probe.latencies):.3f} s")
     assert not probe.failures
     assert len(probe.latencies) >= 10
     assert max(probe.latencies) < HEALTH_LIMIT_S, sorted(probe.latencies)[-5:]
-    names = sorted(path.name for path in scenes.iterdir() if not path.name.startswith("."))
-    scene_id = built.json()["id"]
-    assert names == [f"{scene_id}.detail.json", f"{scene_id}.json", f"{scene_id}.npz"]
-    assert httpx.delete(f"{url}/v1/scenes/{built.json()['id']}", timeout=30).status_code == 204
 
 
 def test_the_quota_refuses_an_upload_and_delete_frees_it(
@@ -153,7 +155,15 @@ def test_the_quota_refuses_an_upload_and_delete_frees_it(
         message = _error(refused, 507, "quota_exceeded")
         assert "GECKO_SCENES_QUOTA_BYTES" in message and str(QUOTA_BYTES) in message, message
         assert not any(path.name.startswith(".tmp-") for path in scenes.iterdir())
+        stored = metric_samples(url)
+        assert sample_value(stored, "gecko_scenes_quota_bytes") == QUOTA_BYTES
+        files = [scenes / f"{kept.json()['id']}{suffix}" for suffix in SCENE_SUFFIXES]
+        kept_bytes = sum(path.stat().st_size for path in files)
         assert http.delete(f"/v1/scenes/{kept.json()['id']}").status_code == 204
+        freed = sample_value(stored, "gecko_scenes_stored_bytes") - sample_value(
+            metric_samples(url), "gecko_scenes_stored_bytes"
+        )
+        assert freed == kept_bytes > 2 * MiB
         again = http.post("/v1/scenes", params={"format": "stl"}, content=second)
         assert again.status_code == 201, again.text
         assert http.delete(f"/v1/scenes/{again.json()['id']}").status_code == 204
