@@ -50,6 +50,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         registry = registry_for(settings)
         registry.preload()
         app.state.registry = registry
+        app_metrics.watch_scenes(registry.uploaded_bytes, settings.scenes_quota_bytes)
         settings.roadmaps_path.mkdir(parents=True, exist_ok=True)
         lanes = Lanes(settings, app_metrics)
         app.state.lanes = lanes

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from planner.character import Character
@@ -12,6 +14,9 @@ from planner.scene import Scene, Surface, SurfaceKind
 from planner.shapes import Box, Capsule, ConvexPolytope, Shape
 from service import schemas
 from service.errors import ApiError
+
+if TYPE_CHECKING:
+    from service.registry import StoredSummary
 
 
 def vec3(values: np.ndarray) -> tuple[float, float, float]:
@@ -107,6 +112,17 @@ def scene_summary(scene: Scene, builtin: bool) -> schemas.SceneSummary:
         builtin=builtin,
         triangle_count=int(scene.triangle_count),
         surface_count=len(scene.surfaces),
+    )
+
+
+def stored_summary(scene_id: str, summary: StoredSummary) -> schemas.SceneSummary:
+    """An uploaded scene's summary from its stored metadata (the scene is not loaded)."""
+    return schemas.SceneSummary(
+        id=scene_id,
+        name=summary.name,
+        builtin=False,
+        triangle_count=summary.triangle_count,
+        surface_count=summary.surface_count,
     )
 
 

@@ -21,7 +21,6 @@ from planner.export import (
     phases_from_keyframes,
     scene_glb,
 )
-from planner.scene import Scene
 from service import __version__
 from service.errors import ApiError, not_found
 from service.registry import Registry
@@ -170,12 +169,17 @@ def timeline(overlays: Overlays) -> list[dict[str, Any]]:
     return [{"t0": p.t0, "t1": p.t1, "limbs": list(p.limbs)} for p in overlays.phases]
 
 
-def scene_mesh(scene: Scene) -> SceneMesh:
-    """A served scene's triangle mesh (Gecko's frame)."""
+def scene_mesh(registry: Registry, scene_id: str) -> SceneMesh | None:
+    """A served scene's triangle mesh (Gecko's frame), without loading an uploaded scene;
+    None if unknown."""
+    found = registry.scene_mesh(scene_id)
+    if found is None:
+        return None
+    name, vertices, faces = found
     return SceneMesh(
-        np.asarray(scene.vertices, dtype=np.float64),
-        np.asarray(scene.faces, dtype=np.int64),
-        name=scene.name or scene.id,
+        np.asarray(vertices, dtype=np.float64),
+        np.asarray(faces, dtype=np.int64),
+        name=name or scene_id,
     )
 
 
@@ -204,10 +208,9 @@ def result_glb(
     mesh = None
     if with_scene:
         scene_id = str(result.request.get("scene", ""))
-        scene = registry.get_scene(scene_id)
-        if scene is None:
+        mesh = scene_mesh(registry, scene_id)
+        if mesh is None:
             raise not_found("scene", scene_id, "scene")
-        mesh = scene_mesh(scene)
     extras = {
         "kind": result.kind,
         "id": result.id,
@@ -234,6 +237,6 @@ def result_glb(
         raise ApiError(422, "not_exportable", str(exc), "id") from exc
 
 
-def scene_glb_bytes(scene: Scene) -> bytes:
-    """A served scene as GLB in glTF's frame (y up, metres)."""
-    return scene_glb(scene_mesh(scene), generator=GENERATOR)
+def scene_glb_bytes(mesh: SceneMesh) -> bytes:
+    """A served scene's mesh as GLB in glTF's frame (y up, metres)."""
+    return scene_glb(mesh, generator=GENERATOR)

@@ -12,7 +12,7 @@ client went away, its job was cancelled) stops for real: its process is killed, 
 the slot at once, and a fresh process takes its place on the next task. A process that dies
 fails only the task it ran. The service has three lanes per service worker (``Lanes``):
 interactive work (plans, Twister steps, jumps), background jobs (roadmap builds, asynchronous
-plans) and uploads (a gate only: uploads are parsed in a thread).
+plans) and uploads (mesh parsing, surfaces and BVH builds, one at a time).
 """
 
 from __future__ import annotations
@@ -316,11 +316,12 @@ class Lanes:
             settings=settings,
             metrics=metrics,
         )
-        self.uploads = Gate(
+        self.uploads = Lane(
             "uploads",
-            slots=UPLOAD_CONCURRENCY,
+            processes=UPLOAD_CONCURRENCY,
             queue=settings.upload_queue,
             setting="GECKO_UPLOAD_QUEUE",
+            settings=settings,
             metrics=metrics,
         )
         metrics.worker_processes.set(settings.worker_processes)
@@ -329,3 +330,4 @@ class Lanes:
     def shutdown(self) -> None:
         self.interactive.shutdown()
         self.jobs.shutdown()
+        self.uploads.shutdown()

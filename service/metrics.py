@@ -85,6 +85,26 @@ class JobCounts(Collector):
         yield family
 
 
+class SceneStorage(Collector):
+    """Bytes the uploaded scenes take and their quota, read at each scrape."""
+
+    def __init__(self, used: Callable[[], int], quota: int) -> None:
+        self._used = used
+        self._quota = quota
+
+    def collect(self) -> Iterable[GaugeMetricFamily]:
+        yield GaugeMetricFamily(
+            "gecko_scenes_stored_bytes",
+            "Bytes the uploaded scenes take in the scenes directory (shared by every worker).",
+            value=float(self._used()),
+        )
+        yield GaugeMetricFamily(
+            "gecko_scenes_quota_bytes",
+            "Most bytes the uploaded scenes may take (GECKO_SCENES_QUOTA_BYTES).",
+            value=float(self._quota),
+        )
+
+
 class Metrics:
     """The service's metrics: requests, answers, lanes, worker restarts, jobs."""
 
@@ -145,6 +165,10 @@ class Metrics:
     def watch_jobs(self, counts: Callable[[], Mapping[tuple[str, str], int]]) -> None:
         """Report the job counts ``counts()`` returns ((kind, state) -> n) at each scrape."""
         self.registry.register(JobCounts(counts))
+
+    def watch_scenes(self, used: Callable[[], int], quota: int) -> None:
+        """Report the uploaded scenes' bytes ``used()`` and their ``quota`` at each scrape."""
+        self.registry.register(SceneStorage(used, quota))
 
     def observe_request(self, method: str, route: str, status: int, seconds: float) -> None:
         """Count one answered request and its latency (s)."""

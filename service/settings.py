@@ -21,6 +21,9 @@ LogLevel = Literal["debug", "info", "warning", "error"]
 # per lane: interactive answers take about a second, uploads and background jobs longer.
 RETRY_AFTER_S = {"interactive": 1, "jobs": 5, "uploads": 5}
 UPLOAD_CONCURRENCY = 1  # uploads parsed at once per service worker (the others wait in line)
+# An uploaded mesh may have at most this many vertices per allowed triangle (counted before
+# duplicates merge): more is a file padded with vertices no triangle needs.
+VERTICES_PER_TRIANGLE = 3
 # Jobs (service.jobs): how often (s) a service worker renews its heartbeat and looks for
 # DELETEs of the jobs it runs, and how old (s) a heartbeat may be before the jobs of its
 # service worker are reported interrupted (it died without saying so).
@@ -49,8 +52,36 @@ class Settings(BaseSettings):
         description="comma-separated character ids to serve, or 'auto' for the built-in ones "
         "plus the real robots whose data package is installed",
     )
-    max_upload_bytes: int = Field(default=50 * 1024 * 1024, gt=0)
-    max_triangles: int = Field(default=2_000_000, gt=0)
+    max_upload_bytes: int = Field(
+        default=50 * 1024 * 1024, gt=0, le=1024**3, description="largest mesh upload body"
+    )
+    max_triangles: int = Field(
+        default=2_000_000,
+        gt=0,
+        le=50_000_000,
+        description="most triangles of an uploaded mesh, counted after instancing; at most "
+        f"{VERTICES_PER_TRIANGLE} times as many vertices",
+    )
+    scenes_quota_bytes: int = Field(
+        default=512 * 1024 * 1024,
+        ge=1024 * 1024,
+        le=1024**4,
+        description="bytes all uploaded scenes may take in the scenes directory (mesh and "
+        "metadata files); an upload past it is refused with 507",
+    )
+    scenes_cached: int = Field(
+        default=8,
+        ge=1,
+        le=1024,
+        description="uploaded scenes kept loaded per process, least recently used unloaded "
+        "first (they reload from disk on use)",
+    )
+    upload_timeout_s: float = Field(
+        default=300.0,
+        ge=1.0,
+        le=3600.0,
+        description="s; an upload's parse and build past this is stopped (504), its process killed",
+    )
     worker_processes: int = Field(
         default=2, ge=1, le=64, description="planning processes per service worker"
     )
@@ -134,6 +165,11 @@ class Settings(BaseSettings):
             if origin != "*" and not origin.startswith(("http://", "https://")):
                 raise ValueError(f"CORS origin '{origin}' must be '*' or start with http(s)://")
         return [origin.rstrip("/") for origin in value]
+
+    @property
+    def max_vertices(self) -> int:
+        """Most vertices of an uploaded mesh (counted after instancing, before merging)."""
+        return VERTICES_PER_TRIANGLE * self.max_triangles
 
     @property
     def cache_path(self) -> Path:

@@ -36,6 +36,7 @@ def registry_for(settings: Settings) -> Registry:
         character_ids=ids,
         build_missing_data=settings.build_missing_data,
         data_seed=settings.data_seed,
+        max_loaded_scenes=settings.scenes_cached,
     )
 
 

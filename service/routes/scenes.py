@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import logging
+import os
+import tempfile
+from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import trimesh
@@ -11,16 +14,22 @@ from fastapi import APIRouter, Query, Request
 from fastapi.responses import Response
 from starlette.status import HTTP_204_NO_CONTENT
 
-from planner.scene import Scene, SceneError, load_mesh
+from planner.export import SceneMesh
+from planner.scene import Scene
 from service import convert
 from service.deps import RegistryDep, SettingsDep
 from service.errors import ApiError, not_found
-from service.export import scene_glb_bytes
+from service.export import scene_glb_bytes, scene_mesh
 from service.interactive import RETRY_HEADER
-from service.lanes import Gate
+from service.lanes import Lane
 from service.registry import Registry
 from service.schemas import ErrorBody, SceneDetail, SceneSummary
-from service.settings import Settings
+from service.uploads import (
+    ingest_upload,
+    quota_exceeded,
+    scene_detail_json,
+    scene_summary_json,
+)
 
 router = APIRouter(prefix="/v1/scenes", tags=["scenes"])
 _404: dict[int | str, dict[str, Any]] = {404: {"model": ErrorBody, "description": "unknown scene"}}
@@ -37,26 +46,67 @@ async def _scene(registry: Registry, scene_id: str) -> Scene:
 
 
 @router.get("")
-async def list_scenes(registry: RegistryDep) -> list[SceneSummary]:
-    """Built-in scenes first, then uploaded ones (a stored scene that cannot be read is left
-    out and logged: one broken file must not fail the listing for everyone)."""
+async def list_scenes(
+    request: Request, registry: RegistryDep, settings: SettingsDep
+) -> list[SceneSummary]:
+    """Built-in scenes first, then uploaded ones, from their stored metadata (no uploaded
+    scene is loaded; one stored before summaries were is loaded once, in the uploads lane,
+    and its summary stored). A stored scene that cannot be read is left out and logged: one
+    broken file must not fail the listing for everyone."""
     out = []
-    for scene_id in registry.scene_ids():
-        try:
-            scene = await to_thread.run_sync(registry.get_scene, scene_id)
+    for scene_id in registry.builtin_scene_ids():
+        scene = await to_thread.run_sync(registry.get_scene, scene_id)
+        if scene is not None:
+            out.append(convert.scene_summary(scene, builtin=True))
+    stored = await to_thread.run_sync(_stored_summaries, registry)
+    lane: Lane = request.app.state.lanes.uploads
+    for scene_id, summary in stored:
+        if summary is not None:
+            out.append(summary)
+            continue
+        try:  # metadata older than summaries: upgraded once, off the event loop's process
+            upgraded = await lane.run(
+                scene_summary_json, scene_id, run_for_s=settings.upload_timeout_s
+            )
         except Exception as exc:
             log.error("scene %s cannot be loaded: %s: %s", scene_id, type(exc).__name__, exc)
             continue
-        if scene is not None:  # None: deleted since the ids were read
-            out.append(convert.scene_summary(scene, registry.is_builtin(scene_id)))
+        if upgraded is not None:  # None: deleted since the ids were read
+            out.append(SceneSummary.model_validate(upgraded))
     return out
 
 
-@router.get("/{scene_id}", responses=_404)
-async def get_scene(scene_id: str, registry: RegistryDep) -> SceneDetail:
-    """Bounds, triangle count and affordance surfaces (polygons, normals, kinds, areas)."""
-    scene = await _scene(registry, scene_id)
-    return convert.scene_detail(scene, registry.is_builtin(scene_id))
+def _stored_summaries(registry: Registry) -> list[tuple[str, SceneSummary | None]]:
+    """Each uploaded scene's id and stored summary (None where the metadata has none)."""
+    out: list[tuple[str, SceneSummary | None]] = []
+    for scene_id in registry.uploaded_scene_ids():
+        summary = registry.scene_summary(scene_id)
+        out.append(
+            (scene_id, None if summary is None else convert.stored_summary(scene_id, summary))
+        )
+    return out
+
+
+@router.get("/{scene_id}", responses=_404, response_model=SceneDetail)
+async def get_scene(
+    scene_id: str, request: Request, registry: RegistryDep, settings: SettingsDep
+) -> Response:
+    """Bounds, triangle count and affordance surfaces (polygons, normals, kinds, areas).
+
+    An uploaded scene's details were stored at upload: they are answered as stored, without
+    loading the scene (one stored before is built once in the uploads lane)."""
+    if registry.is_builtin(scene_id):
+        scene = await _scene(registry, scene_id)
+        detail = convert.scene_detail(scene, builtin=True)
+        return Response(detail.model_dump_json(), media_type="application/json")
+    stored = await to_thread.run_sync(registry.stored_detail, scene_id)
+    if stored is not None:
+        return Response(stored, media_type="application/json")
+    lane: Lane = request.app.state.lanes.uploads
+    built = await lane.run(scene_detail_json, scene_id, run_for_s=settings.upload_timeout_s)
+    if built is None:
+        raise not_found("scene", scene_id, "scene_id")
+    return Response(built, media_type="application/json")
 
 
 @router.delete(
@@ -92,40 +142,65 @@ async def get_scene_mesh(
     format: Literal["stl", "glb"] = Query("stl", description="binary STL or GLB"),
 ) -> Response:
     """The scene's triangle mesh in metres: STL in Gecko's world (z up), GLB in glTF's
-    (y up; Gecko's (x, y, z) is glTF's (x, z, -y))."""
-    scene = await _scene(registry, scene_id)
+    (y up; Gecko's (x, y, z) is glTF's (x, z, -y)). An uploaded scene is read from its mesh
+    file, not loaded."""
+    mesh = await to_thread.run_sync(scene_mesh, registry, scene_id)
+    if mesh is None:
+        raise not_found("scene", scene_id, "scene_id")
     if format == "glb":
-        data = await to_thread.run_sync(scene_glb_bytes, scene)
+        data = await to_thread.run_sync(scene_glb_bytes, mesh)
         return Response(data, media_type="model/gltf-binary")
-    mesh = trimesh.Trimesh(scene.vertices, scene.faces, process=False)
-    stl = mesh.export(file_type="stl")
+    data = await to_thread.run_sync(_stl_bytes, mesh)
+    return Response(data, media_type="model/stl")
+
+
+def _stl_bytes(mesh: SceneMesh) -> bytes:
+    stl = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False).export(file_type="stl")
     assert isinstance(stl, bytes)
-    return Response(stl, media_type="model/stl")
+    return stl
 
 
-async def _read_body(request: Request, limit: int) -> bytes:
+async def _receive_body(request: Request, limit: int, directory: Path) -> Path:
+    """Stream the request body into a temporary file in ``directory`` (removed again on any
+    error); a 413 past ``limit`` bytes (declared or received), a 422 when it is empty."""
     declared = request.headers.get("content-length")
     if declared is not None and declared.isdigit() and int(declared) > limit:
-        message = f"mesh body is {declared} bytes; limit {limit}"
+        message = f"mesh body is {declared} bytes; limit {limit} (GECKO_MAX_UPLOAD_BYTES)"
         raise ApiError(413, "too_large", message, "body")
-    chunks: list[bytes] = []
-    size = 0
-    async for chunk in request.stream():
-        size += len(chunk)
-        if size > limit:
-            raise ApiError(
-                413, "too_large", f"mesh body exceeds the limit of {limit} bytes", "body"
-            )
-        chunks.append(chunk)
-    return b"".join(chunks)
+    directory.mkdir(parents=True, exist_ok=True)
+    fd, name = tempfile.mkstemp(dir=directory, prefix=".tmp-upload-", suffix=".tmp")
+    path = Path(name)
+    try:
+        size = 0
+        with os.fdopen(fd, "wb") as handle:
+            async for chunk in request.stream():
+                size += len(chunk)
+                if size > limit:
+                    message = (
+                        f"mesh body exceeds the limit of {limit} bytes (GECKO_MAX_UPLOAD_BYTES)"
+                    )
+                    raise ApiError(413, "too_large", message, "body")
+                handle.write(chunk)  # a page-cache write of one chunk (~64 KB): microseconds
+        if size == 0:
+            raise ApiError(422, "invalid_mesh", "the request body is empty", "body")
+    except BaseException:
+        path.unlink(missing_ok=True)
+        raise
+    return path
 
 
 @router.post(
     "",
     status_code=201,
+    response_model=SceneDetail,
     responses={
-        413: {"model": ErrorBody, "description": "body or triangle count over the limit"},
+        413: {
+            "model": ErrorBody,
+            "description": "body, triangle or vertex count (after instancing) over the limit",
+        },
         422: {"model": ErrorBody, "description": "corrupt, empty or non-finite mesh"},
+        507: {"model": ErrorBody, "description": "the uploaded scenes' quota is full"},
+        504: {"model": ErrorBody, "description": "parsing and building took too long"},
         503: {
             "model": ErrorBody,
             "description": "too many uploads waiting (queue_full), with Retry-After",
@@ -148,49 +223,34 @@ async def upload_scene(
     format: Annotated[UploadFormat, Query(description="mesh file format")],
     name: Annotated[str, Query(max_length=MAX_NAME_LENGTH, description="scene label")] = "",
     y_up: Annotated[bool, Query(description="the file is y-up (converted to z-up)")] = False,
-) -> SceneDetail:
+) -> Response:
     """Upload a mesh as the raw request body; its id is a content hash of the mesh.
 
-    Uploads are parsed one at a time per service worker; a few wait in line (a 503 with
-    Retry-After past ``GECKO_UPLOAD_QUEUE``, before the body is read)."""
-    gate: Gate = request.app.state.lanes.uploads
-    ticket = gate.admit()
+    The body goes to a temporary file; a process of the uploads lane reads its triangle count
+    (after instancing, for glTF) before parsing, then parses it and builds the scene, one
+    upload at a time per service worker. A few wait in line (a 503 with Retry-After past
+    ``GECKO_UPLOAD_QUEUE``, before the body is read)."""
+    lane: Lane = request.app.state.lanes.uploads
+    ticket = lane.admit()
     try:
-        return await _upload(request, registry, settings, gate, format, name, y_up)
+        used = await to_thread.run_sync(registry.uploaded_bytes)
+        if used >= settings.scenes_quota_bytes:
+            raise quota_exceeded(
+                f"uploaded scenes take {used} bytes, the quota of {settings.scenes_quota_bytes}"
+            )
+        body = await _receive_body(request, settings.max_upload_bytes, settings.scenes_path)
+        try:
+            detail = await lane.run(
+                ingest_upload,
+                str(body),
+                format,
+                name,
+                y_up,
+                ticket=ticket,
+                run_for_s=settings.upload_timeout_s,
+            )
+        finally:
+            body.unlink(missing_ok=True)
     finally:
         ticket.release()
-
-
-async def _upload(
-    request: Request,
-    registry: Registry,
-    settings: Settings,
-    gate: Gate,
-    format: UploadFormat,
-    name: str,
-    y_up: bool,
-) -> SceneDetail:
-    body = await _read_body(request, settings.max_upload_bytes)
-    if not body:
-        raise ApiError(422, "invalid_mesh", "the request body is empty", "body")
-
-    def build() -> Scene:
-        try:
-            mesh = load_mesh(body, format, y_up=y_up)
-        except SceneError as exc:
-            raise ApiError(422, "invalid_mesh", str(exc), "body") from exc
-        if len(mesh.faces) > settings.max_triangles:
-            raise ApiError(
-                413,
-                "too_large",
-                f"mesh has {len(mesh.faces)} triangles; limit {settings.max_triangles}",
-                "body",
-            )
-        return registry.add_uploaded_scene(mesh, name)
-
-    await gate.take_slot()
-    try:
-        scene = await to_thread.run_sync(build)
-    finally:
-        gate.give_slot()
-    return convert.scene_detail(scene, builtin=False)
+    return Response(detail, status_code=201, media_type="application/json")

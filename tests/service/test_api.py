@@ -122,7 +122,7 @@ async def test_upload_same_mesh_twice_gives_one_id(
     assert any(s["kind"] == "support" for s in body["surfaces"])
     listing = (await client.get("/v1/scenes")).json()
     assert sum(s["id"] == body["id"] for s in listing) == 1
-    assert len(list(Path(settings.scenes_path).glob("*.json"))) == 1
+    assert len(list(Path(settings.scenes_path).glob("*.npz"))) == 1
 
 
 async def test_upload_survives_restart(client: httpx.AsyncClient, settings: Settings) -> None:

@@ -100,7 +100,7 @@ async def test_delete_an_uploaded_scene(client: httpx.AsyncClient, settings: Set
     created = await client.post("/v1/scenes?format=stl&name=gone", content=_box_stl(1.5))
     assert created.status_code == 201
     scene_id = created.json()["id"]
-    files = [settings.scenes_path / f"{scene_id}.{ext}" for ext in ("json", "npz")]
+    files = [settings.scenes_path / f"{scene_id}.{ext}" for ext in ("json", "npz", "detail.json")]
     bvh = bvh_cache_path(settings.cache_path, scene_id)
     assert all(path.exists() for path in files) and bvh.exists()
 

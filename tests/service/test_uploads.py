@@ -1,0 +1,316 @@
+"""Scene uploads in the uploads lane's process: refused by their counts before they cost,
+bounded by a quota, listed from stored metadata, held in memory by a bounded LRU.
+
+Real servers (uvicorn on a local port, or the app in process with its lifespan) and real mesh
+files; the only timing asserted is /health's, the figure the service promises under any load.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import threading
+import time
+from collections.abc import AsyncIterator, Iterator
+from contextlib import asynccontextmanager
+from pathlib import Path
+
+import httpx
+import pytest
+import trimesh
+from asgi_lifespan import LifespanManager
+from fastapi import FastAPI
+
+from planner.scene import load_mesh
+from planner.scene.collision import bvh_cache_path
+from service.app import create_app
+from service.registry import QuotaExceeded, Registry
+from service.settings import Settings
+from tests.live_server import live_server
+from tests.mesh_files import grid_mesh, grid_ply, instanced_glb
+from tests.paths import gecko_cache_dir
+from tests.prometheus_text import metric_samples, sample_value
+
+HEALTH_LIMIT_S = 0.1  # /health must answer within this while uploads are parsed
+HEALTH_EVERY_S = 0.02
+MiB = 1024 * 1024
+HOUR_S = 3600.0
+QUOTA_BYTES = 4 * MiB  # the test servers' quota of uploaded scenes
+SCENE_SUFFIXES = (".npz", ".json", ".detail.json")  # an uploaded scene's files
+
+
+def _settings(home: Path, **overrides: object) -> Settings:
+    values: dict[str, object] = {
+        "home": home,
+        "cache_dir": gecko_cache_dir(),
+        "scenes_dir": home / "scenes",
+        "characters": "humanoid",
+        "max_upload_bytes": 20 * MiB,
+        "max_triangles": 100_000,
+        "scenes_quota_bytes": QUOTA_BYTES,
+        "log_level": "warning",
+        **overrides,
+    }
+    return Settings.model_validate(values)
+
+
+def _box_stl(size: float) -> bytes:
+    return bytes(trimesh.creation.box(extents=(size, size, 0.2)).export(file_type="stl"))
+
+
+def _grid_stl(triangles: int) -> bytes:
+    return bytes(grid_mesh(triangles).export(file_type="stl"))
+
+
+def _error(response: httpx.Response, status: int, code: str) -> str:
+    assert response.status_code == status, response.text
+    error = response.json()["error"]
+    assert error["code"] == code
+    assert error["field"] == "body"
+    return str(error["message"])
+
+
+class HealthProbe:
+    """Polls /health from a thread every HEALTH_EVERY_S and records each answer's latency."""
+
+    def __init__(self, url: str) -> None:
+        self.url = url
+        self.latencies: list[float] = []
+        self.failures: list[str] = []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="health-probe", daemon=True)
+
+    def _run(self) -> None:
+        with httpx.Client(base_url=self.url, timeout=10) as http:
+            while not self._stop.is_set():
+                started = time.perf_counter()
+                response = http.get("/health")
+                self.latencies.append(time.perf_counter() - started)
+                if response.status_code != 200:
+                    self.failures.append(response.text)
+                self._stop.wait(HEALTH_EVERY_S)
+
+    def __enter__(self) -> HealthProbe:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join(timeout=30)
+
+
+@pytest.fixture(scope="module")
+def upload_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, Path]]:
+    """A live server with small limits: 100,000 triangles, a 4 MiB quota of scenes."""
+    home = tmp_path_factory.mktemp("gecko-uploads")
+    with live_server(_settings(home)) as url:
+        yield url, home / "scenes"
+
+
+def test_oversized_files_are_refused_before_parsing_while_health_answers(
+    upload_server: tuple[str, Path],
+) -> None:
+    url, scenes = upload_server
+    glb = instanced_glb(95, subdivisions=5)  # 20,480 triangles instanced 95 times: 1.9 M
+    ply = grid_ply(500_000)
+    accepted = _grid_stl(60_000)  # within the limit: parsed and built in the uploads lane
+    assert len(glb) < 500_000 and len(ply) > 9_000_000
+    with HealthProbe(url) as probe, httpx.Client(base_url=url, timeout=120) as http:
+        time.sleep(5 * HEALTH_EVERY_S)
+        started = time.perf_counter()
+        refused_glb = http.post("/v1/scenes", params={"format": "glb"}, content=glb)
+        glb_s = time.perf_counter() - started
+        refused_ply = http.post("/v1/scenes", params={"format": "ply"}, content=ply)
+        built = http.post("/v1/scenes", params={"format": "stl", "name": "grid"}, content=accepted)
+        time.sleep(5 * HEALTH_EVERY_S)
+    assert built.status_code == 201, built.text
+    scene_id = built.json()["id"]
+    names = sorted(path.name for path in scenes.iterdir() if not path.name.startswith("."))
+    assert httpx.delete(f"{url}/v1/scenes/{scene_id}", timeout=30).status_code == 204
+    assert names == [f"{scene_id}.detail.json", f"{scene_id}.json", f"{scene_id}.npz"]
+    assert built.json()["triangle_count"] == len(grid_mesh(60_000).faces)
+    message = _error(refused_glb, 413, "too_large")
+    assert "1945600 triangles (after instancing)" in message, message
+    assert "limit 100000" in message
+    assert "GECKO_MAX_TRIANGLES" in _error(refused_ply, 413, "too_large")
+    print(f"refused instanced GLB in {glb_s:.3f} s; /health max {max(probe.latencies):.3f} s")
+    assert not probe.failures
+    assert len(probe.latencies) >= 10
+    assert max(probe.latencies) < HEALTH_LIMIT_S, sorted(probe.latencies)[-5:]
+
+
+def test_the_quota_refuses_an_upload_and_delete_frees_it(
+    upload_server: tuple[str, Path],
+) -> None:
+    url, scenes = upload_server
+    first, second = _grid_stl(60_000), _grid_stl(64_000)  # about 2.1 MiB stored each
+    with httpx.Client(base_url=url, timeout=120) as http:
+        kept = http.post("/v1/scenes", params={"format": "stl", "name": "a"}, content=first)
+        assert kept.status_code == 201, kept.text
+        listing = {scene["id"]: scene for scene in http.get("/v1/scenes").json()}
+        assert listing[kept.json()["id"]]["triangle_count"] == kept.json()["triangle_count"]
+        assert listing[kept.json()["id"]]["name"] == "a"
+        refused = http.post("/v1/scenes", params={"format": "stl"}, content=second)
+        message = _error(refused, 507, "quota_exceeded")
+        assert "GECKO_SCENES_QUOTA_BYTES" in message and str(QUOTA_BYTES) in message, message
+        assert not any(path.name.startswith(".tmp-") for path in scenes.iterdir())
+        stored = metric_samples(url)
+        assert sample_value(stored, "gecko_scenes_quota_bytes") == QUOTA_BYTES
+        files = [scenes / f"{kept.json()['id']}{suffix}" for suffix in SCENE_SUFFIXES]
+        kept_bytes = sum(path.stat().st_size for path in files)
+        assert http.delete(f"/v1/scenes/{kept.json()['id']}").status_code == 204
+        freed = sample_value(stored, "gecko_scenes_stored_bytes") - sample_value(
+            metric_samples(url), "gecko_scenes_stored_bytes"
+        )
+        assert freed == kept_bytes > 2 * MiB
+        again = http.post("/v1/scenes", params={"format": "stl"}, content=second)
+        assert again.status_code == 201, again.text
+        assert http.delete(f"/v1/scenes/{again.json()['id']}").status_code == 204
+
+
+def test_a_ply_padded_with_vertices_is_refused_by_its_header(
+    upload_server: tuple[str, Path],
+) -> None:
+    url, _ = upload_server
+    header = b"ply\nformat binary_little_endian 1.0\nelement vertex 400000\n"
+    header += b"property float x\nproperty float y\nproperty float z\n"
+    header += b"element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+    body = header + bytes(12 * 400_000) + bytes([3]) + bytes(12)
+    response = httpx.post(f"{url}/v1/scenes", params={"format": "ply"}, content=body, timeout=60)
+    message = _error(response, 413, "too_large")
+    assert "400000 vertices" in message and "limit 300000" in message, message
+
+
+def test_a_mesh_over_the_limit_without_a_header_count_is_refused_after_parsing(
+    upload_server: tuple[str, Path],
+) -> None:
+    url, _ = upload_server
+    body = grid_mesh(120_000).export(file_type="dae")  # COLLADA: no count before parsing
+    response = httpx.post(f"{url}/v1/scenes", params={"format": "dae"}, content=body, timeout=120)
+    assert "GECKO_MAX_TRIANGLES" in _error(response, 413, "too_large")
+
+
+@asynccontextmanager
+async def _serve(settings: Settings) -> AsyncIterator[tuple[FastAPI, httpx.AsyncClient]]:
+    app = create_app(settings)
+    async with (
+        LifespanManager(app),
+        httpx.AsyncClient(transport=httpx.ASGITransport(app=app), base_url="http://g") as http,
+    ):
+        yield app, http
+
+
+def _age(path: Path, seconds: float) -> None:
+    then = time.time() - seconds
+    os.utime(path, (then, then))
+
+
+@pytest.mark.anyio
+async def test_after_a_restart_the_listing_loads_no_uploaded_scene(tmp_path: Path) -> None:
+    settings = _settings(tmp_path)
+    async with _serve(settings) as (_, http):
+        created = await http.post("/v1/scenes?format=stl&name=slab", content=_box_stl(2.0))
+        assert created.status_code == 201, created.text
+    scene_id = created.json()["id"]
+    bvh = bvh_cache_path(settings.cache_path, scene_id)
+    assert bvh.is_file()
+    bvh.unlink()  # built again only if something loads the scene
+    leftover = settings.scenes_path / ".tmp-upload-crashed.tmp"
+    leftover.write_bytes(b"half an upload")
+    _age(leftover, HOUR_S)
+    young = settings.scenes_path / ".tmp-upload-running.tmp"
+    young.write_bytes(b"an upload in progress")
+    async with _serve(settings) as (app, http):
+        assert not leftover.exists() and young.exists()
+        listing = (await http.get("/v1/scenes")).json()
+        uploaded = [scene for scene in listing if not scene["builtin"]]
+        assert uploaded == [
+            {
+                "id": scene_id,
+                "name": "slab",
+                "builtin": False,
+                "triangle_count": 12,
+                "surface_count": len(created.json()["surfaces"]),
+            }
+        ]
+        detail = await http.get(f"/v1/scenes/{scene_id}")
+        assert detail.status_code == 200, detail.text
+        assert detail.json() == created.json()
+        for fmt in ("stl", "glb"):
+            mesh = await http.get(f"/v1/scenes/{scene_id}/mesh", params={"format": fmt})
+            assert mesh.status_code == 200, mesh.text
+            loaded = trimesh.load(io.BytesIO(mesh.content), file_type=fmt, force="mesh")
+            assert len(loaded.faces) == 12
+        registry: Registry = app.state.registry
+        assert registry.loaded_scene_ids() == []
+        assert app.state.lanes.uploads.pids() == {"idle": [], "busy": []}
+        assert not bvh.exists()
+        assert (await http.get("/health")).json()["scenes"] == len(listing)
+
+
+@pytest.mark.anyio
+async def test_metadata_stored_before_summaries_is_upgraded_once(tmp_path: Path) -> None:
+    settings = _settings(tmp_path)
+    async with _serve(settings) as (_, http):
+        created = (await http.post("/v1/scenes?format=stl&name=old", content=_box_stl(3.0))).json()
+    meta = settings.scenes_path / f"{created['id']}.json"
+    meta.write_text(json.dumps({"name": "old"}))  # what uploads stored before summaries
+    (settings.scenes_path / f"{created['id']}.detail.json").unlink()  # and before details
+    async with _serve(settings) as (app, http):
+        listing = (await http.get("/v1/scenes")).json()
+        assert {"id": created["id"], "name": "old", "triangle_count": 12} == {
+            key: value
+            for scene in listing
+            if scene["id"] == created["id"]
+            for key, value in scene.items()
+            if key in ("id", "name", "triangle_count")
+        }
+        detail = await http.get(f"/v1/scenes/{created['id']}")
+        assert detail.status_code == 200, detail.text
+        assert detail.json() == created
+        assert app.state.registry.loaded_scene_ids() == []  # loaded in the uploads lane
+    stored = json.loads(meta.read_text())
+    assert stored["version"] == 2 and stored["triangle_count"] == 12
+    assert stored["surface_count"] == len(created["surfaces"])
+    detail_file = settings.scenes_path / f"{created['id']}.detail.json"
+    assert json.loads(detail_file.read_text()) == created
+
+
+def test_loaded_uploaded_scenes_are_bounded_and_reload_on_use(tmp_path: Path) -> None:
+    registry = Registry(
+        cache_dir=tmp_path / "cache", scenes_dir=tmp_path / "scenes", max_loaded_scenes=2
+    )
+    meshes = [load_mesh(_box_stl(size), "stl") for size in (1.0, 2.0, 3.0)]
+    ids = [registry.add_uploaded_scene(mesh, f"box{i}").id for i, mesh in enumerate(meshes)]
+    assert registry.loaded_scene_ids() == ids[1:]
+    loads = registry.scene_loads
+    reloaded = registry.get_scene(ids[0])  # evicted: loaded again from disk
+    assert reloaded is not None and reloaded.name == "box0"
+    assert registry.scene_loads == loads + 1
+    assert registry.loaded_scene_ids() == [ids[2], ids[0]]
+    assert registry.get_scene(ids[2]) is not None  # held: no load
+    assert registry.scene_loads == loads + 1
+    assert registry.loaded_scene_ids() == [ids[0], ids[2]]
+    stored_only = registry.add_uploaded_scene(load_mesh(_box_stl(4.0), "stl"), "b", keep=False)
+    assert registry.loaded_scene_ids() == [ids[0], ids[2]]
+    assert registry.get_scene(stored_only.id) is not None  # on disk all the same
+
+
+def test_delete_frees_quota_memory_and_the_cached_bvh(tmp_path: Path) -> None:
+    cache, scenes = tmp_path / "cache", tmp_path / "scenes"
+    registry = Registry(cache_dir=cache, scenes_dir=scenes, max_loaded_scenes=4)
+    first = registry.add_uploaded_scene(load_mesh(_box_stl(1.0), "stl"), "a", quota_bytes=MiB)
+    used = registry.uploaded_bytes()
+    assert 0 < used < MiB
+    with pytest.raises(QuotaExceeded) as refused:
+        registry.add_uploaded_scene(load_mesh(_box_stl(2.0), "stl"), "b", quota_bytes=used + 10)
+    assert refused.value.quota == used + 10 and refused.value.used == used
+    assert registry.uploaded_bytes() == used  # nothing of the refused scene stayed
+    assert not [path for path in scenes.iterdir() if path.name.startswith(".tmp-")]
+    assert registry.delete_uploaded_scene(first.id)
+    assert registry.uploaded_bytes() == 0
+    assert registry.loaded_scene_ids() == []
+    assert not bvh_cache_path(cache, first.content_hash).exists()
+    second = registry.add_uploaded_scene(load_mesh(_box_stl(2.0), "stl"), "b", quota_bytes=MiB)
+    assert registry.scene_summary(second.id) is not None
