@@ -73,8 +73,14 @@ def scenario_options(spec: dict[str, Any]) -> PlanOptions:
     )
 
 
-def _plan(name: str) -> tuple[PlanResult[ContactPlan], Any, Any, Any]:
-    spec = SPECS[name]
+def _plan(
+    name: str, seed_offset: int = 0, nudge: float = 0.0
+) -> tuple[PlanResult[ContactPlan], Any, Any, Any]:
+    """The plan of scenario ``name`` at its seed plus ``seed_offset``, its start moved
+    ``nudge`` m along x."""
+    spec = json.loads(json.dumps(SPECS[name]))
+    start = spec["start"]
+    start["stand_at" if "stand_at" in start else "position"][0] += nudge
     scene = scenario_scene(spec)
     if scene is None:
         pytest.skip(f"scene of {name} not installed (hpp-environments)")
@@ -86,7 +92,7 @@ def _plan(name: str) -> tuple[PlanResult[ContactPlan], Any, Any, Any]:
         data,
         scenario_endpoint(spec["start"]),
         scenario_endpoint(spec["goal"]),
-        rng=np.random.default_rng(int(spec["seed"])),
+        rng=np.random.default_rng(int(spec["seed"]) + seed_offset),
         time_budget_s=float(spec["time_budget_s"]),
         options=scenario_options(spec),
     )
@@ -219,6 +225,29 @@ def test_keyframes_pass_the_independent_audit(planned) -> None:  # type: ignore[
     if name not in STILL_COLLIDING:
         assert audit.penetrating_frames == 0, audit.summary()
         assert audit.self_collision_frames == 0, audit.summary()
+
+
+def test_a_neighbouring_seed_and_a_nudged_start_solve_too(planned) -> None:  # type: ignore[no-untyped-def]
+    """No scenario sits on a knife edge: with the next seed and its start moved 1 mm, the
+    plan is as good (SOLVED, or for the plans of ``MOTION_SHORTFALL`` a complete contact
+    plan whose motion report says what is not clean)."""
+    name = planned[0]
+    result = _plan(name, seed_offset=1, nudge=0.001)[0]
+    if name in MOTION_SHORTFALL and result.status is PlanStatus.APPROXIMATE:
+        assert result.message.startswith("whole-body motion:"), result.message
+    elif name in KNIFE_EDGE and result.status is not PlanStatus.SOLVED:
+        pytest.xfail(f"{KNIFE_EDGE[name]}: {result.message}")
+    else:
+        assert result.status is PlanStatus.SOLVED, result.message
+
+
+# Scenarios that solve at their seed but not always at the next one with a nudged start
+# (issue 12 item 6 stays open for them): the test records how they fail instead.
+KNIFE_EDGE = {
+    "climbing_wall_hexapod": "the walk stalls part-way up the wall (no progress at 1.23 m)",
+    "stairs_handrail_humanoid": "a swing foot into a step and a stance slip the builder "
+    "does not repair (the contact change is not re-planned)",
+}
 
 
 def test_same_seed_same_plan(planned) -> None:  # type: ignore[no-untyped-def]
