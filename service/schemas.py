@@ -382,7 +382,10 @@ class TwisterStepResponse(BaseModel):
     com: list[ComSegmentOut]
     keyframes: list[KeyframeOut]
     failure: FailureOut | None = None
-    report: dict[str, object]
+    report: dict[str, object] = Field(
+        description="the attempts made and how the motion came out; clock_cap_hit: the "
+        "wall-clock cap stopped 'auto' before it had tried every limb (a replay may differ)"
+    )
     timings: dict[str, float]
 
 
@@ -591,7 +594,10 @@ class PlanResponse(BaseModel):
     com: list[ComSegmentOut]
     keyframes: list[KeyframeOut]
     states: list[StateOut]
-    report: dict[str, object]
+    report: dict[str, object] = Field(
+        description="how the motion came out; clock_cap_hit: the wall-clock cap, not the "
+        "work the time budget buys, stopped the plan (a replay may then differ)"
+    )
     timings: dict[str, float]
 
 

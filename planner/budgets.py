@@ -1,0 +1,55 @@
+"""Work budgets: how much search and keyframe work a request's ``time_budget_s`` buys.
+
+Every tuning value of it is here, named and explained. A plan is decided by counted work,
+never by the clock, so the same request and seed give the same answer on a quiet machine and
+on a loaded one: ``time_budget_s`` buys ``UNITS_PER_SECOND`` work units per second, each
+stage charges a fixed number of units per step (an RRT iteration, a contact-sequence cycle, a
+keyframe), and a stage stops when the units are spent. The wall-clock budget stays as a hard
+cap that only binds on a machine much slower (or busier) than the reference one; the plan's
+stats then say ``clock_cap_hit`` and its message says a replay may differ.
+
+A work unit is about one millisecond of the reference machine (2 cores, nothing else
+running). Costs were measured on it (a shared 2-core machine, so if anything slower than a
+quiet one) over the reference plans of ``tests/scenarios/plans``, each rounded up.
+"""
+
+from __future__ import annotations
+
+from planner.termination import Deadline, WorkBudget
+
+UNITS_PER_SECOND = 600.0
+"""Work units one second of ``time_budget_s`` buys. The reference machine does about 1000 a
+second, so the work of a budget takes about 60 % of it there: the work budget binds well
+before the clock cap, which binds only on a machine (or a load) 1.7 times slower. Enough for
+the reference plans (the heaviest, the hexapod's climbing wall, spends about 29 000 of the
+36 000 units its 60 s buy)."""
+
+SEARCH_SHARE = 0.8
+"""The search (endpoints, root path, contacts) stops once it has used this share of the
+units (and of the clock cap); keyframes get every unit the search left, at least the rest."""
+
+STANDING_ATTEMPT_UNITS = 10.0
+"""A root pose tried for a standing state (IK of every ground limb, a state check): about
+10 ms."""
+
+ROOT_PATH_ITERATION_UNITS = 2.0
+"""An RRT-Connect iteration of the root path (a sample steered, the other tree connecting),
+and a shortcut or waypoint-skipping try of its smoothing: 1.3 to 1.8 ms (more as the trees
+grow)."""
+
+SEQUENCE_CYCLE_UNITS_PER_LIMB = 15.0
+"""A contact-sequence cycle (the body advanced, then a limb stepped), per walking limb: a
+cycle tries up to every limb. Measured 8 ms per limb walking on flat ground to 17 ms per limb
+for the humanoid climbing with hands and feet."""
+
+KEYFRAME_UNITS = 5.0
+"""A keyframe tracked (two QP control steps, a collision check): 3 ms for the humanoid and
+the quadruped, 5 ms for the hexapod. A swing tracked again with a higher arc pays again."""
+
+
+def plan_budget(time_budget_s: float, cap_s: float | None = None) -> WorkBudget:
+    """The work budget of a plan asked for ``time_budget_s`` seconds: its units come from
+    ``time_budget_s`` alone (so a request replays however long it waited in a queue); its
+    wall-clock cap is ``cap_s`` seconds from now (default ``time_budget_s``)."""
+    cap = time_budget_s if cap_s is None else cap_s
+    return WorkBudget(UNITS_PER_SECOND * time_budget_s, Deadline(cap))
