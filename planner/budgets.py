@@ -3,26 +3,29 @@
 Every tuning value of it is here, named and explained. A plan is decided by counted work,
 never by the clock, so the same request and seed give the same answer on a quiet machine and
 on a loaded one: ``time_budget_s`` buys ``UNITS_PER_SECOND`` work units per second, each
-stage charges a fixed number of units per step (an RRT iteration, a contact-sequence cycle, a
-keyframe), and a stage stops when the units are spent. The wall-clock budget stays as a hard
-cap that only binds on a machine much slower (or busier) than the reference one; the plan's
-stats then say ``clock_cap_hit`` and its message says a replay may differ.
+stage charges a fixed number of units per step it counts (an RRT iteration, a
+contact-sequence cycle and the states it checked, a keyframe), and a stage stops when the
+units are spent. The wall-clock budget stays as a hard cap that only binds on a machine much
+slower (or busier) than the reference one; the plan's stats then say ``clock_cap_hit`` and
+its message says a replay may differ.
 
 A work unit is about one millisecond of the reference machine (2 cores, nothing else
-running). Costs were measured on it (a shared 2-core machine, so if anything slower than a
-quiet one) over the reference plans of ``tests/scenarios/plans``, each rounded up.
+running). Costs were measured on it (shared with other work at times, so if anything slower
+than a quiet one) over the reference plans of ``tests/scenarios/plans``, rounded up.
 """
 
 from __future__ import annotations
 
+from planner.character import Character
 from planner.termination import Deadline, WorkBudget
 
 UNITS_PER_SECOND = 600.0
 """Work units one second of ``time_budget_s`` buys. The reference machine does about 1000 a
 second, so the work of a budget takes about 60 % of it there: the work budget binds well
-before the clock cap, which binds only on a machine (or a load) 1.7 times slower. Enough for
-the reference plans (the heaviest, the hexapod's climbing wall, spends about 29 000 of the
-36 000 units its 60 s buy)."""
+before the clock cap, which binds only on a machine (or a load) 1.7 times slower (measured
+costs range from 0.5 to 1.2 ms a unit). Enough for every reference plan at its budget (the
+heaviest, the hexapod's climbing wall, spends about 26 000 of the 36 000 units its 60 s
+buy)."""
 
 SEARCH_SHARE = 0.8
 """The search (endpoints, root path, contacts) stops once it has used this share of the
@@ -37,14 +40,32 @@ ROOT_PATH_ITERATION_UNITS = 2.0
 and a shortcut or waypoint-skipping try of its smoothing: 1.3 to 1.8 ms (more as the trees
 grow)."""
 
-SEQUENCE_CYCLE_UNITS_PER_LIMB = 15.0
-"""A contact-sequence cycle (the body advanced, then a limb stepped), per walking limb: a
-cycle tries up to every limb. Measured 8 ms per limb walking on flat ground to 17 ms per limb
-for the humanoid climbing with hands and feet."""
+SEQUENCE_CYCLE_UNITS_PER_LIMB = 5.0
+"""A contact-sequence cycle (the body advanced, the footholds ahead found), per walking limb,
+on top of the states it checks (``STATE_CHECK_UNITS``)."""
 
-KEYFRAME_UNITS = 5.0
-"""A keyframe tracked (two QP control steps, a collision check): 3 ms for the humanoid and
-the quadruped, 5 ms for the hexapod. A swing tracked again with a higher arc pays again."""
+STATE_CHECK_UNITS = 5.0
+"""A candidate contact state checked (``ContactContext.work``), with the IK that placed it:
+a cycle that fails and tries again pays for every try. Fitted with the cycle cost over the
+reference plans: a cycle took 25 to 67 ms (rubble, flat ground, the humanoid climbing with
+hands and feet, the hexapod, HyQ, Talos on platforms), about 0.5 to 1.2 ms a unit."""
+
+KEYFRAME_UNITS_PER_SHAPE = 0.2
+"""A keyframe tracked (two QP control steps, a collision check, its share of the COM
+trajectory), per collision shape of the character: the checks dominate. Measured 3 ms for
+the humanoid (15 shapes) and the quadruped (17), 5 ms for the hexapod (25) and Talos (30).
+A swing tracked again with a higher arc pays again."""
+
+
+COM_STATE_UNITS = 12.0
+"""A contact state's share of the COM trajectory (2PAC's sliding window, Eq. 1 checks),
+computed before any keyframe and never cut: 7 to 16 ms a state. Charged to the keyframes'
+units so that they stay close to the time they take."""
+
+
+def keyframe_units(character: Character) -> float:
+    """Work units of one keyframe of ``character``."""
+    return KEYFRAME_UNITS_PER_SHAPE * len(character.geometry.geometryObjects)
 
 
 def plan_budget(time_budget_s: float, cap_s: float | None = None) -> WorkBudget:

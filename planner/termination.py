@@ -76,6 +76,10 @@ class WorkBudget:
         reads no clock."""
         return self.left(limit) <= 0.0
 
+    def charge(self, cost: float) -> None:
+        """Count ``cost`` units of work done outside any poll (nothing stops here)."""
+        self.used += cost
+
     def poll(self, cost: float, limit: float | None = None, cap: Deadline | None = None) -> bool:
         """Charge ``cost`` units; True when the work is spent up to ``limit`` or, failing
         that, when the cap (``cap``, else the budget's own) has passed."""

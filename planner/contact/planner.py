@@ -243,6 +243,15 @@ def plan_contact_motion(
     walking = {c.limb for c in (*start_state.value.contacts, *goal_state.value.contacts)}
     walking.update(opts.limbs)
     cycle_units = budgets.SEQUENCE_CYCLE_UNITS_PER_LIMB * max(1, len(walking))
+    checked = ctx.work.states_checked
+
+    def walk() -> bool:
+        # a cycle, and the states the previous one checked (a cycle of failures costs more)
+        nonlocal checked
+        new, checked = ctx.work.states_checked - checked, ctx.work.states_checked
+        cost = cycle_units + budgets.STATE_CHECK_UNITS * new
+        return budget.poll(cost, search_units, search_cap)
+
     best: tuple[PlanResult[tuple[ContactState, ...]], FloatArray, PlanResult[Any]] | None = None
     attempts = 0
     for jitter in _RETRY_JITTERS:
@@ -281,7 +290,7 @@ def plan_contact_motion(
             poses,
             goal_state.value,
             rng=rng,
-            until=search(cycle_units),
+            until=walk,
             params=params,
             limbs=opts.limbs,
         )
@@ -291,6 +300,7 @@ def plan_contact_motion(
     assert best is not None
     sequence, poses, path = best
     states = sequence.value or (start_state.value,)
+    budget.charge(budgets.COM_STATE_UNITS * len(states))  # the COM trajectory, never cut
     motion = sequence_motion(
         character,
         data,
@@ -298,7 +308,7 @@ def plan_contact_motion(
         states,
         rate=opts.rate,
         timing=opts.timing,
-        until=budget.stage(budgets.KEYFRAME_UNITS),  # every unit left, under the whole cap
+        until=budget.stage(budgets.keyframe_units(character)),  # every unit left, whole cap
     )
     lap("motion")
     status = sequence.status

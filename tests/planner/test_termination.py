@@ -43,7 +43,7 @@ def test_the_cap_stops_the_work_and_says_so(monkeypatch: pytest.MonkeyPatch) -> 
     assert not budget.spent()  # the clock stopped it, with work left
 
 
-def test_spent_and_left_charge_nothing_and_read_no_clock(
+def test_spent_left_and_charge_read_no_clock(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     budget = WorkBudget(10.0, Deadline(5.0))
@@ -51,7 +51,9 @@ def test_spent_and_left_charge_nothing_and_read_no_clock(
     monkeypatch.setattr(planner.termination, "time", clock)
     for _ in range(3):
         assert not budget.spent() and budget.left(4.0) == 4.0
-    assert clock.reads == 0 and budget.used == 0.0
+    budget.charge(6.0)  # work done outside a poll: counted, nothing stops
+    assert budget.left(4.0) == 0.0 and budget.left() == 4.0
+    assert clock.reads == 0 and budget.used == 6.0 and not budget.cap_hit
 
 
 def test_a_plan_budget_comes_from_the_time_budget_alone() -> None:
