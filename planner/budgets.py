@@ -29,7 +29,7 @@ buy)."""
 
 SEARCH_SHARE = 0.8
 """The search (endpoints, root path, contacts) stops once it has used this share of the
-units (and of the clock cap); keyframes get every unit the search left, at least the rest."""
+units (and of the clock cap); the COM trajectory and the keyframes get every unit it left."""
 
 STANDING_ATTEMPT_UNITS = 10.0
 """A root pose tried for a standing state (IK of every ground limb, a state check): about
