@@ -142,7 +142,13 @@ Seed = Annotated[
     ),
 ]
 TimeBudget = Annotated[
-    float, Field(gt=0, le=MAX_TIME_BUDGET_S, description="seconds of planning, at most 60")
+    float,
+    Field(
+        gt=0,
+        le=MAX_TIME_BUDGET_S,
+        description="seconds of planning, at most 60: they buy the work that decides the "
+        "answer (the same on any machine); the clock only caps it (report.clock_cap_hit)",
+    ),
 ]
 Rate = Annotated[float, Field(gt=0, le=240, description="keyframes per second")]
 
