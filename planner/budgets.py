@@ -21,11 +21,12 @@ from planner.termination import Deadline, WorkBudget
 
 UNITS_PER_SECOND = 600.0
 """Work units one second of ``time_budget_s`` buys. The reference machine does about 1000 a
-second, so the work of a budget takes about 60 % of it there: the work budget binds well
-before the clock cap, which binds only on a machine (or a load) 1.7 times slower (measured
-costs range from 0.5 to 1.2 ms a unit). Enough for every reference plan at its budget (the
-heaviest, the hexapod's climbing wall, spends about 26 000 of the 36 000 units its 60 s
-buy)."""
+second (0.6 ms a unit for the quadruped to 1.3 for Talos on platforms), so the work of a
+budget takes about 60 % of it there: plans stopped by their work budget measured 40 to 76 %
+of their clock cap (rubble 4 s, the hexapod's wall 15 s, flat walks 1 and 2 s, Talos's
+platforms 2 s, the handrail 5 s), so the cap binds only on a machine (or under a load) 1.3
+to 2.5 times slower. Enough for every reference plan at its budget (the heaviest, the
+hexapod's climbing wall, spends about 29 000 of the 36 000 units its 60 s buy)."""
 
 SEARCH_SHARE = 0.8
 """The search (endpoints, root path, contacts) stops once it has used this share of the
@@ -57,10 +58,10 @@ the humanoid (15 shapes) and the quadruped (17), 5 ms for the hexapod (25) and T
 A swing tracked again with a higher arc pays again."""
 
 
-COM_STATE_UNITS = 12.0
+COM_STATE_UNITS = 16.0
 """A contact state's share of the COM trajectory (2PAC's sliding window, Eq. 1 checks),
-computed before any keyframe and never cut: 7 to 16 ms a state. Charged to the keyframes'
-units so that they stay close to the time they take."""
+computed before any keyframe and never cut: 7 (Talos) to 16 ms (the hexapod, the humanoid)
+a state. Charged to the keyframes' units so that they stay close to the time they take."""
 
 
 def keyframe_units(character: Character) -> float:
