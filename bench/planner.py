@@ -1,9 +1,11 @@
 """Contact-planner benchmark: success rate and time per stage, per scenario, over seeds.
 
 Usage: ``python bench/planner.py [--seeds 20] [--scenario NAME ...]``. Scenarios are the
-JSON files of ``tests/scenarios/plans/``. Prints, asserts nothing. Targets on the 2-core
-machine: success >= 90 % on every built-in scenario, about 10 contact changes <= 0.5 s
-median.
+JSON files of ``tests/scenarios/plans/``. Prints, asserts nothing; ``work`` is the largest
+share of its work budget a seed used (100 %: the budget stopped it) and ``capped`` the plans
+the wall-clock cap stopped first (0 on a machine fast enough to replay every answer). Targets
+on the 2-core machine: success >= 90 % on every built-in scenario, about 10 contact changes
+<= 0.5 s median.
 """
 
 from __future__ import annotations
@@ -50,7 +52,7 @@ def main() -> None:
         files = [f for f in files if f.stem in args.scenario]
     print(
         f"{'scenario':28s} {'ok':>5s} {'med s':>7s} {'p90 s':>7s} {'path':>6s} "
-        f"{'contacts':>8s} {'motion':>7s} {'changes':>7s}"
+        f"{'contacts':>8s} {'motion':>7s} {'changes':>7s} {'work':>5s} {'capped':>6s}"
     )
     for file in files:
         spec = json.loads(file.read_text())
@@ -61,6 +63,7 @@ def main() -> None:
             print(f"{file.stem:28s} skipped: scene not installed")
             continue
         totals, stages, changes, solved = [], {"root_path": [], "contacts": [], "motion": []}, [], 0
+        work, capped = [], 0  # share of the work budget used; plans the clock cap stopped
         for seed in range(args.seeds):
             start = time.perf_counter()
             result = plan_contact_motion(
@@ -75,6 +78,9 @@ def main() -> None:
             )
             totals.append(time.perf_counter() - start)
             solved += result.status.value == "SOLVED"
+            used, units = result.stats.get("work_used", 0.0), result.stats.get("work_units", 1.0)
+            work.append(float(used) / float(units))
+            capped += bool(result.stats.get("clock_cap_hit", False))
             plan = result.value
             if plan is not None:
                 for stage, values in stages.items():
@@ -84,7 +90,8 @@ def main() -> None:
         print(
             f"{file.stem:28s} {solved / args.seeds:5.0%} {statistics.median(totals):7.2f} "
             f"{_p90(totals):7.2f} {med['root_path']:6.2f} {med['contacts']:8.2f} "
-            f"{med['motion']:7.2f} {statistics.median(changes) if changes else 0:7.1f}"
+            f"{med['motion']:7.2f} {statistics.median(changes) if changes else 0:7.1f} "
+            f"{max(work):5.0%} {capped:6d}"
         )
 
 

@@ -107,8 +107,10 @@ def budget_left(deadline: float | None, budget_s: float) -> float:
 
 
 def run_plan(request_json: str, seed: int, deadline: float | None = None) -> dict[str, Any]:
-    """``POST /v1/plans`` in a worker: the response as a JSON-ready dict; the search stops
-    at ``deadline`` (monotonic s; None: the request's budget from now)."""
+    """``POST /v1/plans`` in a worker: the response as a JSON-ready dict. The request's
+    ``time_budget_s`` alone sets the plan's work budget (so the answer replays whatever the
+    queue and the load); ``deadline`` (monotonic s; None: the request's budget from now) is
+    only the wall-clock cap, and the report says ``clock_cap_hit`` when it bound."""
     request = schemas.PlanRequest.model_validate_json(request_json)
     entry = character_entry(request.character)
     scene = scene_by_id(request.scene)
@@ -133,7 +135,8 @@ def run_plan(request_json: str, seed: int, deadline: float | None = None) -> dic
         _endpoint(request.start),
         _endpoint(request.goal),
         rng=np.random.default_rng(seed),
-        time_budget_s=budget_left(deadline, request.time_budget_s),
+        time_budget_s=request.time_budget_s,
+        cap_s=budget_left(deadline, request.time_budget_s),
         options=options,
     )
     plan = result.value
@@ -142,6 +145,8 @@ def run_plan(request_json: str, seed: int, deadline: float | None = None) -> dic
     report: dict[str, Any] = dict(motion.report) if motion is not None else {}
     # Wall-clock figures belong to ``timings``; the report must replay bit for bit.
     report["stats"] = {k: v for k, v in result.stats.items() if "second" not in k}
+    # the clock, not the work budget, stopped the plan: a replay may differ
+    report["clock_cap_hit"] = bool(result.stats.get("clock_cap_hit", False))
     response = schemas.PlanResponse(
         status=result.status.value,
         seed=seed,
@@ -157,11 +162,11 @@ def run_plan(request_json: str, seed: int, deadline: float | None = None) -> dic
 
 
 def run_twister_step(request_json: str, seed: int, deadline: float | None = None) -> dict[str, Any]:
-    """``POST /v1/twister/step`` in a worker: one contact change, as a JSON-ready dict;
-    ``auto`` stops trying limbs at ``deadline`` (monotonic s; None: the budget from now)."""
+    """``POST /v1/twister/step`` in a worker: one contact change, as a JSON-ready dict.
+    ``auto`` tries the limbs in the seed's order; ``deadline`` (monotonic s; None: the
+    budget from now) is only a wall-clock cap on it (``report.clock_cap_hit``)."""
     request = schemas.TwisterStepRequest.model_validate_json(request_json)
-    started = time.perf_counter()
-    budget_s = budget_left(deadline, request.time_budget_s)
+    cap = Deadline(budget_left(deadline, request.time_budget_s))
     entry = character_entry(request.character)
     scene = scene_by_id(request.scene)
     character, data = entry.character, entry.data
@@ -213,14 +218,13 @@ def run_twister_step(request_json: str, seed: int, deadline: float | None = None
         surface=request.action.surface,
         target=None if request.action.target is None else np.asarray(request.action.target),
     )
-    until = started + budget_s  # twister_step's deadline is on the perf_counter clock
     with clock.stage("step"):
         result = twister_step(
             ctx,
             state,
             action,
             rng=rng,
-            until=until,
+            cap=cap,
             rate=request.rate,
             timing=timing_of(request.options),
         )

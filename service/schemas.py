@@ -142,7 +142,13 @@ Seed = Annotated[
     ),
 ]
 TimeBudget = Annotated[
-    float, Field(gt=0, le=MAX_TIME_BUDGET_S, description="seconds of planning, at most 60")
+    float,
+    Field(
+        gt=0,
+        le=MAX_TIME_BUDGET_S,
+        description="seconds of planning, at most 60: they buy the work that decides the "
+        "answer (the same on any machine); the clock only caps it (report.clock_cap_hit)",
+    ),
 ]
 Rate = Annotated[float, Field(gt=0, le=240, description="keyframes per second")]
 
@@ -382,7 +388,10 @@ class TwisterStepResponse(BaseModel):
     com: list[ComSegmentOut]
     keyframes: list[KeyframeOut]
     failure: FailureOut | None = None
-    report: dict[str, object]
+    report: dict[str, object] = Field(
+        description="the attempts made and how the motion came out; clock_cap_hit: the "
+        "wall-clock cap stopped 'auto' before it had tried every limb (a replay may differ)"
+    )
     timings: dict[str, float]
 
 
@@ -607,7 +616,10 @@ class PlanResponse(BaseModel):
     com: list[ComSegmentOut]
     keyframes: list[KeyframeOut]
     states: list[StateOut]
-    report: dict[str, object]
+    report: dict[str, object] = Field(
+        description="how the motion came out; clock_cap_hit: the wall-clock cap, not the "
+        "work the time budget buys, stopped the plan (a replay may then differ)"
+    )
     timings: dict[str, float]
 
 

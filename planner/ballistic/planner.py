@@ -313,6 +313,11 @@ def plan_jumps(
     scene, character and parameters (ValueError otherwise). Statuses: SOLVED; INVALID_START /
     INVALID_GOAL (no valid node there, or no jump leaves / reaches it); INFEASIBLE (not
     connected); TIMEOUT (``until`` fired before the query ended).
+
+    The work is counted, not timed: the roadmap's size (``params.n_nodes``) decides what is
+    built. A ``Deadline`` ``until`` is only a wall-clock cap (the build gets
+    ``params.build_share`` of it): when it stops the work, ``stats["clock_cap_hit"]`` is 1
+    and the message says a replay may differ.
     """
     params = JumpParams() if params is None else params
     clock = time.perf_counter()
@@ -336,17 +341,29 @@ def plan_jumps(
 
     mark = time.perf_counter()
     stats: dict[str, float | int | str] = {}
+    caps = [until] if isinstance(until, Deadline) else []  # wall-clock caps polled
+
+    def capped(message: str) -> str:
+        # whether a wall-clock cap, not the counted work, stopped a stage, in the stats
+        hit = any(cap.fired for cap in caps)
+        stats["clock_cap_hit"] = int(hit)
+        if not hit:
+            return message
+        note = "the wall-clock cap stopped the work: a replay may differ"
+        return f"{message}; {note}" if message else note
+
     if roadmap is None and store_dir is not None:
         store = RoadmapStore(store_dir)
         rid = store.build(scene, character, data, params, params.n_nodes, params.roadmap_seed)
         roadmap = store.load(rid)
     elif roadmap is None:
         # Leave a share of a deadline to the query and the keyframes.
-        build_until = (
-            any_of(until, Deadline(params.build_share * until.remaining()))
-            if isinstance(until, Deadline)
-            else until
-        )
+        if isinstance(until, Deadline):
+            build_cap = Deadline(params.build_share * until.remaining())
+            caps.append(build_cap)
+            build_until = any_of(until, build_cap)
+        else:
+            build_until = until
         built = build_roadmap(
             SceneSampler(model, min_limbs),
             params.n_nodes,
@@ -356,7 +373,8 @@ def plan_jumps(
             until=build_until,
         )
         if built.value is None:
-            return PlanResult(built.status, None, dict(timings), built.message)
+            message = capped(built.message)
+            return PlanResult(built.status, None, {**timings, **stats}, message)
         roadmap = built.value
     elif roadmap.params.digest() != rparams.digest():
         raise ValueError("the roadmap was built for another scene, character or parameters")
@@ -370,7 +388,8 @@ def plan_jumps(
         timings["total"] = time.perf_counter() - clock
         stats.update(found.stats)
         stats.update(timings)
-        return PlanResult(found.status, None, stats, found.message)
+        message = capped(found.message)
+        return PlanResult(found.status, None, stats, message)
     path = found.value
 
     mark = time.perf_counter()
@@ -391,8 +410,8 @@ def plan_jumps(
         if not ok
     ]
     if problems:
-        return PlanResult(PlanStatus.APPROXIMATE, plan, stats, "; ".join(problems))
-    return PlanResult(PlanStatus.SOLVED, plan, stats)
+        return PlanResult(PlanStatus.APPROXIMATE, plan, stats, capped("; ".join(problems)))
+    return PlanResult(PlanStatus.SOLVED, plan, stats, capped(found.message))
 
 
 def _point(spec: FloatArray) -> FloatArray:

@@ -278,7 +278,9 @@ class StateReport:
 
 def check_state(ctx: ContactContext, state: ContactState, hold_tol: float = 1e-3) -> StateReport:
     """Check ``state``: contacts on surfaces, effectors at their contacts (``hold_tol`` m),
-    no collision, balance with ``params.margin``, COM inside the kinematic polytopes."""
+    no collision, balance with ``params.margin``, COM inside the kinematic polytopes
+    (counted in ``ctx.work``)."""
+    ctx.work.states_checked += 1
     q = state.q
     held = hold_error(ctx, q, state.contacts) <= hold_tol
     on = all(contact_on_surface(ctx, c) for c in state.contacts)

@@ -78,6 +78,15 @@ class ContactParams:
     ik_iterations: int = 150
 
 
+@dataclass(slots=True)
+class WorkCount:
+    """Work done through a context, counted (never timed): a plan's work budget charges the
+    contact search for it (``planner.budgets``). states_checked : calls of ``check_state``,
+    each a candidate state's collision, balance and reach checks (and, before it, its IK)."""
+
+    states_checked: int = 0
+
+
 @dataclass(frozen=True, slots=True, eq=False)
 class ContactContext:
     """Everything the primitives need; build with :func:`make_context`.
@@ -86,6 +95,7 @@ class ContactContext:
     base_world : the same without ``obstacles`` (the (shape, (4, 4) pose) pairs added).
     surfaces : ids of the surfaces contacts may use. com_local : per limb, the COM half-spaces
     in the effector frame (2PAC Eq. 3). limb_dofs : per limb, its velocity indices (k,).
+    work : the work done through this context, counted (states checked).
     """
 
     scene: Scene
@@ -103,6 +113,7 @@ class ContactContext:
         default=(), repr=False
     )
     cache: dict[Any, Any] = field(default_factory=dict, repr=False)
+    work: WorkCount = field(default_factory=WorkCount, repr=False)
 
     def cached(self, key: Any, make: Callable[[], Any]) -> Any:
         """Memoise ``make()`` under ``key`` (bounded; cleared when full)."""

@@ -19,6 +19,7 @@ from planner.contact.state import ContactState
 from planner.contact.step_motion import StepMotion, step_motion
 from planner.motion import ComSegment, Keyframe, Phase
 from planner.motion.sequence import Timing
+from planner.termination import Termination, never
 
 FloatArray = NDArray[np.float64]
 
@@ -59,7 +60,8 @@ class StepResult:
     worst_violation [N]}: Eq. 1 at 5 points), ``transition`` ({point, margin [N],
     kinematic_violation [m]}), ``transition_slack`` [m], ``quasi_static_feasible``,
     ``max_hold_error`` [m], ``colliding_keyframes``, ``swing_lift`` [m], ``surface`` (created
-    contact's surface id, -1 for a break) and ``collisions_fixed``.
+    contact's surface id, -1 for a break) and ``collisions_fixed``; ``clock_cap_hit`` always
+    (the wall-clock cap stopped ``auto`` with limbs left untried).
     """
 
     ok: bool
@@ -93,7 +95,7 @@ def twister_step(
     action: StepAction,
     *,
     rng: np.random.Generator,
-    until: float | None = None,
+    cap: Termination = never,
     rate: float = 30.0,
     timing: Timing | None = None,
 ) -> StepResult:
@@ -102,17 +104,24 @@ def twister_step(
     ``timing`` times the motion like a plan's (speed, the user's attractor for the one
     transition, index 0).
 
-    ``until`` is a ``time.perf_counter()`` deadline after which ``auto`` stops trying limbs.
-    ``auto`` draws limbs in random order (``rng``); a limb in contact is released, a free one
-    placed on a random nearby allowed surface; the first limb that succeeds is used.
+    ``auto`` draws the order of the limbs from ``rng`` (so from the seed) and tries each
+    once at most, in that order: a limb in contact is released, a free one placed on a random
+    nearby allowed surface; the first limb whose move succeeds without collision is used, else
+    the least colliding. What it tries depends on the seed alone, never on the time: ``cap``
+    (say a :class:`~planner.termination.Deadline`) is only a wall-clock cap, polled before each
+    limb after the first; when it stops ``auto`` with limbs left untried, the report says
+    ``clock_cap_hit`` (a replay may differ).
     """
     t_start = time.perf_counter()
     timings: dict[str, float] = {}
     attempts: list[dict[str, Any]] = []
+    cap_hit = False  # whether the wall-clock cap stopped 'auto' with limbs left
 
     def failed(reason: FailureReason, message: str, limb: str | None) -> StepResult:
         timings["total"] = time.perf_counter() - t_start
-        report = {"attempts": attempts}
+        report: dict[str, Any] = {"attempts": attempts, "clock_cap_hit": cap_hit}
+        if cap_hit:
+            message += "; the wall-clock cap stopped 'auto' with limbs left: a replay may differ"
         failure = StepFailure(reason, message, limb)
         return StepResult(False, state, (), (), (), report, failure, timings)
 
@@ -135,7 +144,8 @@ def twister_step(
     best: tuple[str, ContactAttempt, StepMotion] | None = None
     t_contacts = t_motion = 0.0
     for kind, limb in plan:
-        if until is not None and time.perf_counter() > until and last is not None:
+        if last is not None and cap():
+            cap_hit = True  # the clock, not the plan of attempts, stopped here
             break
         t0 = time.perf_counter()
         attempt = _attempt(ctx, state, kind, limb, action, rng)
@@ -184,6 +194,7 @@ def twister_step(
     timings["total"] = time.perf_counter() - t_start
     report = dict(motion.report)
     report["attempts"] = attempts
+    report["clock_cap_hit"] = cap_hit
     report["surface"] = attempt.surface
     report["collisions_fixed"] = (
         attempt.resampled

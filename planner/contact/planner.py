@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from planner import budgets
 from planner.character import MAX_PITCH, Character
 from planner.contact.context import ContactParams, make_context
 from planner.contact.reachability import ReachabilityChecker
@@ -25,7 +26,7 @@ from planner.motion.sequence import SequenceMotion, Timing, sequence_motion
 from planner.offline import OfflineData
 from planner.result import PlanResult, PlanStatus
 from planner.scene import Scene
-from planner.termination import Deadline
+from planner.termination import Deadline, Termination
 
 FloatArray = NDArray[np.float64]
 
@@ -83,7 +84,7 @@ def _resolve(
     data: OfflineData,
     checker: ReachabilityChecker,
     rng: np.random.Generator,
-    until: Deadline,
+    until: Termination,
     facing: FloatArray | None = None,
 ) -> PlanResult[ContactState]:
     """The state of ``endpoint``; a ``stand_at`` endpoint faces the point ``facing`` (3,)
@@ -106,7 +107,7 @@ def _resolve(
             checker=checker,
             yaw=yaw,
         )
-        if found.status is PlanStatus.SOLVED or yaw is None or until():
+        if found.status in (PlanStatus.SOLVED, PlanStatus.TIMEOUT) or yaw is None:
             return found
         return standing_state(  # no room facing the way: any heading
             scene, character, data, endpoint.stand_at, rng=rng, until=until, checker=checker
@@ -116,7 +117,7 @@ def _resolve(
 
 
 _RETRY_JITTERS = (0.05, 0.15, 0.3, 0.3)
-SEARCH_SHARE = 0.8  # of the time budget for endpoints, root path and contacts
+SEARCH_SHARE = budgets.SEARCH_SHARE  # of the work (and of the clock cap) for the search
 
 
 def _better(
@@ -152,15 +153,21 @@ def plan_contact_motion(
     rng: np.random.Generator,
     time_budget_s: float,
     options: PlanOptions | None = None,
+    cap_s: float | None = None,
 ) -> PlanResult[ContactPlan]:
-    """Plan from ``start`` to ``goal`` within ``time_budget_s`` seconds.
+    """Plan from ``start`` to ``goal`` with the work ``time_budget_s`` seconds buy.
 
     The status is the worst of the stages: INVALID_START / INVALID_GOAL when an endpoint has
     no valid standing state, the root path's status when it fails (TIMEOUT, INFEASIBLE), the
     contact sequence's otherwise (SOLVED, or APPROXIMATE with the partial plan). Keyframes
-    are computed for whatever states were found, within the remaining budget: the search
-    (endpoints, root path, contacts) stops at ``SEARCH_SHARE`` of it, so a plan that used
-    its search time still animates and the whole answer comes within ``time_budget_s``.
+    are computed for whatever states were found.
+
+    Work, not the clock, decides (``planner.budgets``): ``time_budget_s`` buys a number of
+    work units, the search (endpoints, root path, contacts) stops once it has used
+    ``SEARCH_SHARE`` of them and keyframes stop when the rest is spent, so the answer for a
+    seed is the same on any machine. The wall clock is only a cap, ``cap_s`` seconds from
+    now (default ``time_budget_s``; the search's cap is ``SEARCH_SHARE`` of it): when it
+    stops a stage first, ``stats["clock_cap_hit"]`` is True and the message says so.
     """
     opts = options or PlanOptions()
     names = [limb.name for limb in character.limbs]
@@ -168,8 +175,18 @@ def plan_contact_motion(
     if unknown:
         raise ValueError(f"options.limbs: unknown limbs {unknown}; expected some of {names}")
     max_pitch = character.max_pitch if opts.max_pitch is None else opts.max_pitch
-    whole = Deadline(time_budget_s)
-    until = Deadline(SEARCH_SHARE * time_budget_s)  # the search; keyframes get the rest
+    budget = budgets.plan_budget(time_budget_s, cap_s)
+    assert budget.cap is not None
+    cap_seconds = budget.cap.seconds
+    search_units = SEARCH_SHARE * budget.units  # the search; keyframes get the rest
+    search_cap = Deadline(SEARCH_SHARE * cap_seconds, budget.cap.start)
+
+    def search(cost: float) -> Termination:
+        return budget.stage(cost, limit=search_units, cap=search_cap)
+
+    def search_spent() -> bool:
+        return budget.spent(search_units) or budget.cap_hit
+
     timings: dict[str, float] = {}
     clock = time.perf_counter()
 
@@ -179,21 +196,40 @@ def plan_contact_motion(
         timings[name] = timings.get(name, 0.0) + now - clock
         clock = now
 
+    def budget_stats() -> dict[str, float | int | str]:
+        return {
+            "work_units": round(budget.units, 3),
+            "work_used": round(budget.used, 3),
+            "clock_cap_hit": budget.cap_hit,
+        }
+
+    def capped(message: str) -> str:
+        if not budget.cap_hit:
+            return message
+        note = (
+            f"the wall-clock cap ({cap_seconds:.3g} s) stopped the work before its budget "
+            "was spent: a replay may differ"
+        )
+        return f"{message}; {note}" if message else note
+
     checker = ReachabilityChecker(scene, character, data)
     empty_path = np.zeros((0, 4, 4))
-    start_state = _resolve(start, scene, character, data, checker, rng, until, _position(goal))
+    standing = search(budgets.STANDING_ATTEMPT_UNITS)
+    start_state = _resolve(start, scene, character, data, checker, rng, standing, _position(goal))
     if not start_state.status or start_state.value is None:
         lap("endpoints")
-        status = PlanStatus.TIMEOUT if until() else PlanStatus.INVALID_START
+        timed_out = start_state.status is PlanStatus.TIMEOUT
+        status = PlanStatus.TIMEOUT if timed_out else PlanStatus.INVALID_START
         plan = ContactPlan((), empty_path, None, timings)
-        return PlanResult(status, plan, {}, f"start: {start_state.message}")
+        return PlanResult(status, plan, budget_stats(), capped(f"start: {start_state.message}"))
     away = 2.0 * _position(goal) - _position(start)  # face on, the way the walk went
-    goal_state = _resolve(goal, scene, character, data, checker, rng, until, away)
+    goal_state = _resolve(goal, scene, character, data, checker, rng, standing, away)
     lap("endpoints")
     if not goal_state.status or goal_state.value is None:
-        status = PlanStatus.TIMEOUT if until() else PlanStatus.INVALID_GOAL
+        timed_out = goal_state.status is PlanStatus.TIMEOUT
+        status = PlanStatus.TIMEOUT if timed_out else PlanStatus.INVALID_GOAL
         plan = ContactPlan((start_state.value,), empty_path, None, timings)
-        return PlanResult(status, plan, {}, f"goal: {goal_state.message}")
+        return PlanResult(status, plan, budget_stats(), capped(f"goal: {goal_state.message}"))
 
     ctx = make_context(scene, character, data, opts.contact)
     start_root = _root_pose(character, start_state.value.q)
@@ -204,12 +240,24 @@ def plan_contact_motion(
             checker, start_root, goal_root, spacing=opts.sequence.spacing, max_pitch=max_pitch
         )
         lap("root_path")
+    walking = {c.limb for c in (*start_state.value.contacts, *goal_state.value.contacts)}
+    walking.update(opts.limbs)
+    cycle_units = budgets.SEQUENCE_CYCLE_UNITS_PER_LIMB * max(1, len(walking))
+    checked = ctx.work.states_checked
+
+    def walk() -> bool:
+        # a cycle, and the states the previous one checked (a cycle of failures costs more)
+        nonlocal checked
+        new, checked = ctx.work.states_checked - checked, ctx.work.states_checked
+        cost = cycle_units + budgets.STATE_CHECK_UNITS * new
+        return budget.poll(cost, search_units, search_cap)
+
     best: tuple[PlanResult[tuple[ContactState, ...]], FloatArray, PlanResult[Any]] | None = None
     attempts = 0
     for jitter in _RETRY_JITTERS:
         # A stuck walk is retried on a new guide path with noisier foothold choices; the
         # best attempt (SOLVED, else the furthest along) is kept.
-        if best is not None and (best[0].status is PlanStatus.SOLVED or until()):
+        if best is not None and (best[0].status is PlanStatus.SOLVED or search_spent()):
             break
         attempts += 1
         path: PlanResult[RootPath]
@@ -221,7 +269,7 @@ def plan_contact_motion(
                 start_root,
                 goal_root,
                 rng=rng,
-                until=until,
+                until=search(budgets.ROOT_PATH_ITERATION_UNITS),
                 step=opts.step,
                 orientation_bounds=OrientationBounds(pitch=(-max_pitch, max_pitch)),
             )
@@ -229,7 +277,8 @@ def plan_contact_motion(
             if not path.status or path.value is None:
                 if best is None:
                     plan = ContactPlan((start_state.value,), empty_path, None, timings)
-                    return PlanResult(path.status, plan, dict(path.stats), path.message)
+                    stats = {**path.stats, **budget_stats()}
+                    return PlanResult(path.status, plan, stats, capped(path.message))
                 break
             poses = path.value.resample(opts.sequence.spacing)
             if max_pitch > LEVEL_PITCH:
@@ -241,7 +290,7 @@ def plan_contact_motion(
             poses,
             goal_state.value,
             rng=rng,
-            until=until,
+            until=walk,
             params=params,
             limbs=opts.limbs,
         )
@@ -251,6 +300,7 @@ def plan_contact_motion(
     assert best is not None
     sequence, poses, path = best
     states = sequence.value or (start_state.value,)
+    budget.charge(budgets.COM_STATE_UNITS * len(states))  # the COM trajectory, never cut
     motion = sequence_motion(
         character,
         data,
@@ -258,7 +308,7 @@ def plan_contact_motion(
         states,
         rate=opts.rate,
         timing=opts.timing,
-        until=whole,
+        until=budget.stage(budgets.keyframe_units(character)),  # every unit left, whole cap
     )
     lap("motion")
     status = sequence.status
@@ -271,5 +321,5 @@ def plan_contact_motion(
         # stance contact; a motion short of that is the valid part of a plan
         status = PlanStatus.APPROXIMATE
         message = f"whole-body motion: {shortfall}"
-    stats = {**path.stats, **sequence.stats, "attempts": attempts}
-    return PlanResult(status, ContactPlan(states, poses, motion, timings), stats, message)
+    stats = {**path.stats, **sequence.stats, "attempts": attempts, **budget_stats()}
+    return PlanResult(status, ContactPlan(states, poses, motion, timings), stats, capped(message))

@@ -329,7 +329,7 @@ def plan_root_path(
                 "nodes": sum(len(t.poses) for t in trees),
                 "seconds": time.perf_counter() - clock,
             }
-            return PlanResult(PlanStatus.TIMEOUT, None, partial, "no path before the deadline")
+            return PlanResult(PlanStatus.TIMEOUT, None, partial, "no path within the budget")
         if not pool:
             pool = list(
                 sample_root_poses(

@@ -493,7 +493,7 @@ def contact_sequence(
     furthest, idle = s, 0  # the furthest the body got, and cycles since
     while True:
         if until():
-            return result(PlanStatus.TIMEOUT, "time budget spent while walking the path")
+            return result(PlanStatus.TIMEOUT, "budget spent while walking the path")
         if len(states) >= p.max_states:
             return result(PlanStatus.APPROXIMATE, f"stopped at {p.max_states} states")
         stats["cycles"] = int(stats["cycles"]) + 1

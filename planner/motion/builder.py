@@ -4,7 +4,8 @@ The COM curve and the phases come from the caller (a plan, a Twister step, a jum
 builder runs the QP tracker (``tracker``) at ``SUBSTEPS`` control steps per keyframe, keeps
 the keyframes on an even grid at ``spec.rate``, and checks every keyframe with the one
 checker (``checker``). It never raises on a motion it cannot make clean: the report says
-which keyframes collide or slip and whether the deadline cut the motion short.
+which keyframes collide or slip and whether its termination (the plan's work budget, or
+its wall-clock cap) cut the motion short.
 """
 
 from __future__ import annotations
@@ -35,8 +36,9 @@ class MotionReport:
     """How a motion came out.
 
     phases_animated / phases_total : phases whose whole span has keyframes. cut_short :
-    the deadline stopped the tracking before the end. colliding_keyframes : keyframes the
-    checker refuses (into the scene or into the body); worst_scene_depth (m) and
+    the termination (a work budget spent, or a clock cap) stopped the tracking before the
+    end. colliding_keyframes : keyframes the checker refuses (into the scene or into the
+    body); worst_scene_depth (m) and
     worst_shape say where; worst_self_depth (m). max_hold_error : m, stance contacts.
     com_error_max / com_error_p99 : m, keyframe COM against its curve. qp_fallbacks :
     control steps solved without the collision dampers (their QP had no solution).
@@ -71,7 +73,7 @@ class MotionReport:
         """What keeps the motion from being complete, in words; None when it is."""
         reasons = []
         if self.phases_animated < self.phases_total:
-            why = ": the time budget ran out" if self.cut_short else ""
+            why = ": the budget ran out" if self.cut_short else ""
             reasons.append(
                 f"keyframes for {self.phases_animated} of {self.phases_total} phases{why}"
             )
@@ -376,8 +378,9 @@ def build_motion(
     checked. A swing phase whose keyframes collide, or whose effector does not reach its
     landing, is tracked again from its start with the next higher arc of ``SWING_LIFTS``
     (2PAC section 7.2), a flight whose keyframes collide with its limbs tucked further
-    (``FLIGHT_TUCKS``), the best attempt kept. ``until`` is polled once per keyframe: when
-    it fires, the keyframes so far are returned and the report says ``cut_short``. With
+    (``FLIGHT_TUCKS``), the best attempt kept. ``until`` is polled once per keyframe tracked
+    (a retried swing or flight polls again; a plan's work budget charges each poll): when it
+    fires, the keyframes so far are returned and the report says ``cut_short``. With
     ``spec.q_end``, a motion not cut short ends exactly there (its last ``END_BLEND_S``
     seconds blended into it, and checked again)."""
     tracker = WholeBodyTracker(character, scene_bvh, obstacles)

@@ -258,8 +258,9 @@ def sequence_motion(
     transition points instead (reported per phase). Transition points use ``timing.cost``
     (default "tired": between the previous point and the COM of the state after next, so
     the COM travels over the stance while a limb swings) unless the user placed them.
-    If ``until`` fires while keyframes are computed, the remaining phases keep their COM
-    curve but get no keyframes; the report says how many phases were animated.
+    If ``until`` (polled once per keyframe tracked) fires while keyframes are computed, the
+    remaining phases keep their COM curve but get no keyframes; the report says how many
+    phases were animated.
     """
     if not states:
         raise ValueError("states: at least one contact state is needed")

@@ -80,6 +80,8 @@ async def test_same_seed_same_answer(client: httpx.AsyncClient) -> None:
     first = (await client.post("/v1/plans", json=WALK, timeout=120)).json()
     second = (await client.post("/v1/plans", json=WALK, timeout=120)).json()
     assert _without_timings(first) == _without_timings(second)
+    # the work budget, not the clock, decided: the report says the cap did not bind
+    assert first["report"]["clock_cap_hit"] is False
 
 
 async def test_seed_is_drawn_and_echoed(client: httpx.AsyncClient) -> None:

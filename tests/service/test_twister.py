@@ -81,6 +81,7 @@ async def test_same_seed_same_step(client: httpx.AsyncClient) -> None:
     first.pop("timings")
     second.pop("timings")
     assert first == second
+    assert first["report"]["clock_cap_hit"] is False  # the seed decided, not the clock
 
 
 @pytest.mark.parametrize(

@@ -160,8 +160,8 @@ def test_deadline_builds_a_partial_roadmap_and_still_answers() -> None:
     assert result.value.roadmap.stats["stopped"] == 1
     assert result.value.jumps and result.value.keyframes
     assert result.status in (PlanStatus.SOLVED, PlanStatus.APPROXIMATE), result.message
-    if result.status is PlanStatus.APPROXIMATE:
-        assert "budget" in result.message
+    # the clock, not the roadmap's size, stopped the build: the answer says so
+    assert result.stats["clock_cap_hit"] == 1 and "replay may differ" in result.message
 
 
 def test_section_matches_contact_region() -> None:

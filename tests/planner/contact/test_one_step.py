@@ -9,8 +9,10 @@ import pytest
 
 from planner.contact.context import FailureReason
 from planner.contact.one_step import StepAction, StepFailure, twister_step
+from planner.termination import Deadline
 from tests.planner.contact.step_checks import assert_valid_step
 from tests.planner.contact.twister_game import SCENARIOS, context, play, start_state
+from tests.virtual_clock import jumping_clock
 
 GAMES = sorted(SCENARIOS.glob("*.json"))
 _CACHE: dict[Path, list] = {}
@@ -54,6 +56,26 @@ def test_same_seed_same_game() -> None:
             np.testing.assert_array_equal(ka.q, kb.q)
 
 
+def test_auto_is_decided_by_the_seed_not_the_clock(monkeypatch: pytest.MonkeyPatch) -> None:
+    """'auto' tries limbs in the seed's order until one works: a clock cap polled before each
+    further limb, with the clock jumping to just under it, changes no move of the game."""
+    path = SCENARIOS / "quadruped.json"
+    polls = []
+    with jumping_clock(monkeypatch, 4.99, at=1):
+        deadline = Deadline(5.0)
+
+        def cap() -> bool:
+            polls.append(deadline())
+            return polls[-1]
+
+        capped = play(path, cap=cap)
+    assert polls and not any(polls)  # polled (a move tried a second limb), never passed
+    for a, b in zip(_moves(path), capped, strict=True):
+        assert a.result.report["attempts"] == b.result.report["attempts"]
+        assert b.result.report["clock_cap_hit"] is False
+        np.testing.assert_array_equal(a.result.state.q, b.result.state.q)
+
+
 def test_structured_failures() -> None:
     ctx = context("humanoid", "twister")
     state = start_state(
@@ -79,7 +101,6 @@ def test_structured_failures() -> None:
 
 
 def test_auto_and_targeted_actions() -> None:
-    import time
 
     ctx = context("quadruped", "twister")
     feet = {
@@ -98,5 +119,9 @@ def test_auto_and_targeted_actions() -> None:
     assert placed.ok and placed.report["surface"] >= 0
     contact = placed.state.contact("lh_foot")
     assert contact is not None and np.linalg.norm(contact.points[0, :2] - target[:2]) < 0.15
-    late = twister_step(ctx, state, StepAction("auto"), rng=rng, until=time.perf_counter() - 1)
+    # a wall-clock cap already passed stops 'auto' after its first limb, and says so when
+    # it stopped one (the first limb's success ends 'auto' before the cap is polled)
+    cap = Deadline(0.0)
+    late = twister_step(ctx, state, StepAction("auto"), rng=rng, cap=cap)
     assert len(late.report["attempts"]) == 1
+    assert late.report["clock_cap_hit"] is cap.fired

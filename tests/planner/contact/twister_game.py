@@ -22,6 +22,7 @@ from planner.contact.one_step import StepAction, StepResult, twister_step
 from planner.contact.state import ContactState
 from planner.offline import load_offline_data
 from planner.scene import Scene, load_builtin_scene
+from planner.termination import Termination, never
 from tests.paths import REPO_ROOT, gecko_cache_dir
 
 SCENARIOS = REPO_ROOT / "tests" / "scenarios" / "twister"
@@ -75,7 +76,8 @@ class Move:
     result: StepResult
 
 
-def play(path: Path) -> list[Move]:
+def play(path: Path, cap: Termination = never) -> list[Move]:
+    """The game of a scenario file, every move 'auto' (``cap``: each move's clock cap)."""
     spec = json.loads(path.read_text())
     ctxs = [
         context(p["character"], spec["scene"], **_params(p.get("params", {})))
@@ -96,7 +98,7 @@ def play(path: Path) -> list[Move]:
             for o in character_obstacles(ctxs[j].character, states[j].q)
         ]
         ctx = ctxs[i].with_obstacles(obstacles) if obstacles else ctxs[i]
-        result = twister_step(ctx, states[i], StepAction("auto"), rng=rng)
+        result = twister_step(ctx, states[i], StepAction("auto"), rng=rng, cap=cap)
         moves.append(Move(i, ctx, states[i], result))
         if result.ok:
             states[i] = result.state
