@@ -68,6 +68,10 @@ def install_error_handlers(app: FastAPI) -> None:
     async def _validation(_: Request, exc: RequestValidationError) -> JSONResponse:
         errors = exc.errors()
         first = errors[0] if errors else {"loc": (), "msg": "invalid request"}
+        if first.get("type") == "json_invalid":  # its location is a character position
+            position = first.get("loc", ("body", "?"))[-1]
+            message = f"body: not valid JSON at character {position} ({first.get('msg')})"
+            return JSONResponse(error_body("invalid_request", message, "body"), status_code=422)
         field = _field_path(first.get("loc", ()))
         message = f"{field}: {first.get('msg', 'invalid value')}"
         if len(errors) > 1:
@@ -76,7 +80,8 @@ def install_error_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(StarletteHTTPException)
     async def _http(_: Request, exc: StarletteHTTPException) -> JSONResponse:
-        code = {404: "not_found", 405: "method_not_allowed"}.get(exc.status_code, "http_error")
+        codes = {400: "invalid_body", 404: "not_found", 405: "method_not_allowed"}
+        code = codes.get(exc.status_code, "http_error")
         return JSONResponse(
             error_body(code, str(exc.detail), None),
             status_code=exc.status_code,
