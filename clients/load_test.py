@@ -16,7 +16,8 @@ a new game after ``--game-length`` steps or a refused move), ``plan`` asks a sho
 its own asks ``/health`` every ``HEALTH_INTERVAL_S``. The summary gives, per level and kind,
 the count, throughput (answers per second), p50 and p99 latency (ms, of the answers with
 status < 400) and the errors by HTTP status or by failure (``timeout``, ``connection``,
-``exception``), with one message of each; then /health's p50 and p99 and the server's
+``exception``), with one message of each (a user refused with ``Retry-After`` waits that
+long before its next request, as a client should); then /health's p50 and p99 and the server's
 resident memory (its ``gecko_resident_memory_bytes`` metric: the service process and its
 compute processes) before and after the level. Every failure says what happened: its type
 and its text.
@@ -51,6 +52,7 @@ ROADMAP_POLL_S = 0.5
 HEALTH_INTERVAL_S = 0.1  # the /health probe's period during each level
 UPLOAD_GRID = 12  # an upload is a 12 x 12 height field: 242 triangles
 MEMORY_METRIC = "gecko_resident_memory_bytes"
+MAX_RETRY_AFTER_S = 10.0  # the longest a refused user waits before its next request
 
 # The workloads: small and quick answers of each kind on the built-in characters and scenes.
 STEP_START = {
@@ -92,6 +94,15 @@ def terrain_stl(rng: random.Random, cells: int = UPLOAD_GRID, size_m: float = 3.
     for triangle in triangles:
         out.append(struct.pack("<12fH", 0.0, 0.0, 1.0, *(x for v in triangle for x in v), 0))
     return b"".join(out)
+
+
+def retry_after_s(response: httpx.Response) -> float:
+    """Seconds a refused request is told to wait (``Retry-After``, capped at
+    MAX_RETRY_AFTER_S); 0 without one."""
+    try:
+        return min(MAX_RETRY_AFTER_S, max(0.0, float(response.headers.get("retry-after", 0))))
+    except ValueError:
+        return 0.0
 
 
 def parse_memory(metrics_text: str) -> dict[str, float]:
@@ -372,6 +383,9 @@ class LoadTest:
                     stats[kind].latencies.append(elapsed)
                 else:
                     stats[kind].fail(str(response.status_code), _error_message(response))
+                    pause = retry_after_s(response)  # a refused user waits as told
+                    if pause > 0:
+                        await asyncio.sleep(min(pause, max(0.0, deadline - time.monotonic())))
 
         try:
             await asyncio.gather(*(user_loop(i) for i in range(concurrency)))

@@ -21,6 +21,7 @@ from clients.load_test import (
     parse_levels,
     parse_mix,
     percentile,
+    retry_after_s,
     run_ramp,
 )
 from tests.live_server import free_port
@@ -158,6 +159,16 @@ def test_messages_are_never_empty() -> None:
     assert describe(httpx.ReadTimeout(""), 2.5) == "timed out after 2.5 s (ReadTimeout)"
     assert describe(RuntimeError()) == "RuntimeError"
     assert describe(ValueError("bad")) == "ValueError: bad"
+
+
+def test_a_refused_user_waits_as_told() -> None:
+    def answer(headers: dict[str, str]) -> httpx.Response:
+        return httpx.Response(503, headers=headers)
+
+    assert retry_after_s(answer({"Retry-After": "1"})) == 1.0
+    assert retry_after_s(answer({"Retry-After": "3600"})) == 10.0  # capped
+    assert retry_after_s(answer({"Retry-After": "soon"})) == 0.0
+    assert retry_after_s(answer({})) == 0.0
 
 
 def test_percentiles_are_nearest_rank() -> None:
