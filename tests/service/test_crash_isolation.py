@@ -31,6 +31,7 @@ pytestmark = pytest.mark.skipif(not hasattr(signal, "SIGKILL"), reason="POSIX si
 
 LONG_JUMP = {**LIVE_JUMP, "nodes": 10_000, "time_budget_s": 60}  # builds for ~30 s
 BIG_ROADMAP = {"character": "quadruped", "scene": "gaps", "nodes": 10_000, "seed": 100}
+SMALL_ROADMAP = {"character": "quadruped", "scene": "gaps", "nodes": 60, "seed": 7}
 WAIT_S = 180.0
 
 
@@ -153,6 +154,20 @@ def test_a_killed_compute_process_fails_only_its_request(tmp_path: Path) -> None
             step = call.result()
             assert step.status_code == 200, step.text
             assert step.json()["status"] == "SOLVED"
+
+        # A job's process killed: that job fails, saying why; the next one is built.
+        before = set(server.compute_processes()[server.pid])
+        posted = httpx.post(f"{url}/v1/roadmaps", json=BIG_ROADMAP, timeout=60)
+        assert posted.status_code == 202, posted.text
+        build = posted.json()["id"]
+        _until(lambda: _job(url, build)["status"] == "running", "the build runs")
+        (builder,) = set(server.compute_processes()[server.pid]) - before
+        os.kill(builder, signal.SIGKILL)
+        failed = _until(lambda: (j := _job(url, build))["status"] == "failed" and j, "failed")
+        assert failed["message"].startswith("worker_lost: the jobs process running this")
+        small = httpx.post(f"{url}/v1/roadmaps", json=SMALL_ROADMAP, timeout=60)
+        assert small.status_code in (200, 202), small.text
+        _until(lambda: _job(url, small.json()["id"])["status"] == "done", "the next build done")
         _stop_and_check_tree(server)
         assert "died under its task" in server.log()
 
