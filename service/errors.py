@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import logging
+import sqlite3
 from typing import Any
 
 from fastapi import FastAPI, Request
@@ -10,6 +12,8 @@ from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from service.context import annotate
+
+log = logging.getLogger("gecko.errors")
 
 
 class ApiError(Exception):
@@ -86,6 +90,17 @@ def install_error_handlers(app: FastAPI) -> None:
             error_body(code, str(exc.detail), None),
             status_code=exc.status_code,
             headers=getattr(exc, "headers", None),
+        )
+
+    @app.exception_handler(sqlite3.OperationalError)
+    async def _store_busy(_: Request, exc: sqlite3.OperationalError) -> JSONResponse:
+        # The job store stayed locked by another process past its busy timeout (a process
+        # stopped or stuck mid-write): a refusal to retry, not a server error.
+        log.warning("job store unavailable: %s", exc)
+        return JSONResponse(
+            error_body("store_busy", f"the job store is busy ({exc}); retry in 1 s", None),
+            status_code=503,
+            headers={"Retry-After": "1"},
         )
 
     @app.exception_handler(Exception)

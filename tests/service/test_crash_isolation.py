@@ -193,18 +193,6 @@ def test_two_uvicorn_workers_share_jobs_across_crashes_and_restarts(tmp_path: Pa
         assert posted.status_code == 202, posted.text
         plan_job = posted.json()["id"]
         done = _until(lambda: (j := _job(url, plan_job))["status"] == "done" and j, "plan done")
-        build = httpx.post(f"{url}/v1/roadmaps", json=BIG_ROADMAP, timeout=60)
-        assert build.status_code == 202, build.text
-        roadmap = build.json()["id"]
-        _until(lambda: _job(url, roadmap)["status"] == "running", "the roadmap builds")
-
-        workers = server.uvicorn_workers()
-        assert len(workers) == 2
-        for worker in workers:  # each worker answers for both jobs
-            for job_id, state in ((plan_job, "done"), (roadmap, "running")):
-                seen = _answers_alone(server, worker, f"/v1/jobs/{job_id}")
-                assert seen.status_code == 200, seen.text
-                assert seen.json()["status"] == state
 
         # kill -9 of the uvicorn worker serving a long jump: its compute process dies with it
         # (long before the jump would have ended), and uvicorn starts another worker.
@@ -224,6 +212,19 @@ def test_two_uvicorn_workers_share_jobs_across_crashes_and_restarts(tmp_path: Pa
         with contextlib.suppress(httpx.HTTPError):  # or the connection closed under it
             assert jump.result().status_code >= 500  # an error, not a hang
         _until(lambda: len(server.uvicorn_workers()) == 2, "a replacement uvicorn worker")
+
+        build = httpx.post(f"{url}/v1/roadmaps", json=BIG_ROADMAP, timeout=60)
+        assert build.status_code == 202, build.text
+        roadmap = build.json()["id"]
+        _until(lambda: _job(url, roadmap)["status"] == "running", "the roadmap builds")
+
+        workers = server.uvicorn_workers()
+        assert len(workers) == 2
+        for worker in workers:  # each worker answers for both jobs
+            for job_id, state in ((plan_job, "done"), (roadmap, "running")):
+                seen = _answers_alone(server, worker, f"/v1/jobs/{job_id}")
+                assert seen.status_code == 200, seen.text
+                assert seen.json()["status"] == state
 
         # kill -9 of the uvicorn worker building the roadmap: the job is reported
         # interrupted, its compute processes die, the rest works.
@@ -247,11 +248,14 @@ def test_two_uvicorn_workers_share_jobs_across_crashes_and_restarts(tmp_path: Pa
 
     with server_process(home, workers=2) as restarted:  # the same home: the jobs are there
         for worker in restarted.uvicorn_workers():
-            plan = _answers_alone(restarted, worker, f"/v1/jobs/{plan_job}").json()
-            assert plan["status"] == "done" and plan["result"] == done["result"]
+            plan = _answers_alone(restarted, worker, f"/v1/jobs/{plan_job}")
+            assert plan.status_code == 200, plan.text
+            assert plan.json()["status"] == "done"
+            assert plan.json()["result"] == done["result"]
             for job_id in (roadmap, second):
-                build_job = _answers_alone(restarted, worker, f"/v1/jobs/{job_id}").json()
-                assert build_job["status"] == "interrupted", build_job
+                build_job = _answers_alone(restarted, worker, f"/v1/jobs/{job_id}")
+                assert build_job.status_code == 200, build_job.text
+                assert build_job.json()["status"] == "interrupted", build_job.text
         stored = httpx.get(f"{restarted.url}{done['result']['url']}", timeout=60)
         assert stored.status_code == 200
         _stop_and_check_tree(restarted)

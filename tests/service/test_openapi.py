@@ -57,7 +57,9 @@ async def test_routes_document_the_errors_they_give(client: httpx.AsyncClient) -
     assert codes("POST", "/v1/scenes") >= {"201", "413", "422"}
     # A free-text id in the path cannot be refused as invalid: no 422 is promised there.
     assert codes("GET", "/v1/characters/{character_id}") == {"200", "404"}
-    assert codes("GET", "/v1/roadmaps/{roadmap_id}") == {"200", "404"}
+    # Job lookups wait for no writer, but a store locked past its timeout is a 503.
+    assert codes("GET", "/v1/roadmaps/{roadmap_id}") == {"200", "404", "503"}
+    assert codes("GET", "/v1/jobs/{job_id}") == {"200", "404", "503"}
     assert codes("GET", "/health") == {"200"}
     assert "/metrics" in {path for _, path in operations}
 
