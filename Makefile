@@ -7,6 +7,7 @@ STAMP := $(VENV)/.gecko-installed
 HOST ?= 127.0.0.1
 PORT ?= 8000
 WORKERS ?= 1
+SHUTDOWN_GRACE_S ?= 10
 export GECKO_HOME ?= $(CURDIR)/.gecko
 
 .PHONY: help setup data serve test test-fast lint format bench clean
@@ -24,7 +25,7 @@ data: setup ## build the built-in characters' offline data (cached; instant when
 	@$(VENV)/bin/gecko-build-data --all --cache-dir "$(GECKO_HOME)/cache"
 
 serve: data ## run the service on HOST:PORT (127.0.0.1:8000) with built-in scenes and characters
-	@$(VENV)/bin/uvicorn service.app:create_app --factory --host $(HOST) --port $(PORT) --workers $(WORKERS) --no-access-log
+	@$(VENV)/bin/uvicorn service.app:create_app --factory --host $(HOST) --port $(PORT) --workers $(WORKERS) --timeout-graceful-shutdown $(SHUTDOWN_GRACE_S) --no-access-log
 
 test: data ## run the whole test suite
 	@$(PY) -m pytest

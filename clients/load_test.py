@@ -1,28 +1,38 @@
-"""Load-test client: what users do (Twister games, short plans, jumps, listings) at a ramp of
-concurrency levels, with throughput, latency percentiles and errors per kind of request.
+"""Load-test client: what users do (Twister games, short plans, jumps, a few uploads,
+listings) at a ramp of concurrency levels, with throughput, latency percentiles and errors per
+kind of request, /health's latency under that load and the server's memory.
 
 Usage::
 
-    python -m clients.load_test --url http://127.0.0.1:8000 --concurrency 1,4,16 --duration 20
+    python -m clients.load_test --url http://127.0.0.1:8000 --concurrency 1,4,16,64 --duration 20
 
 Each concurrency level runs for ``--duration`` seconds (or ``--requests`` requests, whichever
 comes first) with that many simulated users. A user draws the kind of each request from
 ``--mix``: ``step`` plays a Twister game (each step passes the previous answer's state back,
 a new game after ``--game-length`` steps or a refused move), ``plan`` asks a short walk,
 ``jump`` plans jumps over the ``gaps`` scene on a roadmap built once before the ramp,
-``list`` reads a listing (health, characters, scenes, stored results). The summary gives,
-per level and kind, the count, throughput (answers per second), p50 and p99 latency (ms, of
-the answers with status < 400) and the errors by HTTP status or by failure (``timeout``,
-``connection``), with one message of each. Every failure says what happened.
+``upload`` uploads a small terrain mesh (an STL of its own each time) and deletes it again,
+``list`` reads a listing (health, characters, scenes, stored results). Meanwhile a probe of
+its own asks ``/health`` every ``HEALTH_INTERVAL_S``. The summary gives, per level and kind,
+the count, throughput (answers per second), p50 and p99 latency (ms, of the answers with
+status < 400) and the errors by HTTP status or by failure (``timeout``, ``connection``,
+``exception``), with one message of each (a user refused with ``Retry-After`` waits that
+long before its next request, as a client should); then /health's p50 and p99 and the server's
+resident memory (its ``gecko_resident_memory_bytes`` metric: the service process and its
+compute processes) before and after the level. Every failure says what happened: its type
+and its text.
 """
 
 from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import json
 import math
 import random
+import re
+import struct
 import sys
 import time
 from collections.abc import Awaitable, Callable, Sequence
@@ -34,10 +44,15 @@ import httpx
 MAX_REQUESTS = 1_000_000
 MAX_CONCURRENCY = 256
 MAX_DURATION_S = 3600.0
-KINDS = ("step", "plan", "jump", "list")
-DEFAULT_MIX = "step=6,list=2,plan=1,jump=1"
+KINDS = ("step", "plan", "jump", "upload", "list")
+DEFAULT_MIX = "step=6,list=2,plan=1,jump=1,upload=0.2"
+DEFAULT_LEVELS = "1,4,16,64"
 LIST_PATHS = ("/health", "/v1/characters", "/v1/scenes", "/v1/results?limit=20")
 ROADMAP_POLL_S = 0.5
+HEALTH_INTERVAL_S = 0.1  # the /health probe's period during each level
+UPLOAD_GRID = 12  # an upload is a 12 x 12 height field: 242 triangles
+MEMORY_METRIC = "gecko_resident_memory_bytes"
+MAX_RETRY_AFTER_S = 10.0  # the longest a refused user waits before its next request
 
 # The workloads: small and quick answers of each kind on the built-in characters and scenes.
 STEP_START = {
@@ -59,6 +74,42 @@ JUMP = {
     "start": {"stand_at": [0.75, 0.0, 0.6]},
     "goal": {"stand_at": [8.25, 0.0, 1.0]},
 }
+
+
+def terrain_stl(rng: random.Random, cells: int = UPLOAD_GRID, size_m: float = 3.0) -> bytes:
+    """A binary STL of a gently rolling height field, different for each draw of ``rng``
+    (so each upload is a new scene, parsed and built)."""
+    step = size_m / cells
+    heights = [[0.05 * rng.random() for _ in range(cells + 1)] for _ in range(cells + 1)]
+
+    def vertex(i: int, j: int) -> tuple[float, float, float]:
+        return (i * step, j * step, heights[i][j])
+
+    triangles = []
+    for i in range(cells):
+        for j in range(cells):
+            a, b, c, d = vertex(i, j), vertex(i + 1, j), vertex(i + 1, j + 1), vertex(i, j + 1)
+            triangles += [(a, b, c), (a, c, d)]
+    out = [b"gecko load test terrain".ljust(80, b" "), struct.pack("<I", len(triangles))]
+    for triangle in triangles:
+        out.append(struct.pack("<12fH", 0.0, 0.0, 1.0, *(x for v in triangle for x in v), 0))
+    return b"".join(out)
+
+
+def retry_after_s(response: httpx.Response) -> float:
+    """Seconds a refused request is told to wait (``Retry-After``, capped at
+    MAX_RETRY_AFTER_S); 0 without one."""
+    try:
+        return min(MAX_RETRY_AFTER_S, max(0.0, float(response.headers.get("retry-after", 0))))
+    except ValueError:
+        return 0.0
+
+
+def parse_memory(metrics_text: str) -> dict[str, float]:
+    """``gecko_resident_memory_bytes`` by process (service, interactive, ...) from Prometheus
+    text; empty when the server does not report it."""
+    pattern = re.compile(rf'^{MEMORY_METRIC}{{process="([^"]+)"}} ([0-9.eE+-]+)$', re.MULTILINE)
+    return {name: float(value) for name, value in pattern.findall(metrics_text)}
 
 
 class LoadTestError(Exception):
@@ -181,8 +232,36 @@ class LoadTest:
             "step": self._step,
             "plan": self._plan,
             "jump": self._jump,
+            "upload": self._upload,
             "list": self._list,
         }
+
+    async def memory(self) -> dict[str, float]:
+        """The server's resident memory by process (bytes; empty if not reported)."""
+        try:
+            response = await self.http.get("/metrics", timeout=self.settings.timeout_s)
+        except httpx.HTTPError:
+            return {}
+        return parse_memory(response.text) if response.status_code == 200 else {}
+
+    async def _probe_health(self, stats: KindStats, stop: asyncio.Event) -> None:
+        """Ask /health every HEALTH_INTERVAL_S on a connection of its own until ``stop``."""
+        timeout = self.settings.timeout_s
+        async with httpx.AsyncClient(base_url=str(self.http.base_url), timeout=timeout) as probe:
+            while not stop.is_set():
+                sent = time.perf_counter()
+                try:
+                    response = await probe.get("/health")
+                except httpx.HTTPError as exc:
+                    key = "timeout" if isinstance(exc, httpx.TimeoutException) else "connection"
+                    stats.fail(key, describe(exc, timeout))
+                else:
+                    if response.status_code < 400:
+                        stats.latencies.append(time.perf_counter() - sent)
+                    else:
+                        stats.fail(str(response.status_code), _error_message(response))
+                with contextlib.suppress(TimeoutError):
+                    await asyncio.wait_for(stop.wait(), HEALTH_INTERVAL_S)
 
     async def prepare(self, setup_timeout_s: float = 300.0) -> None:
         """Check the server answers, and build the jump roadmap when jumps are in the mix."""
@@ -250,6 +329,19 @@ class LoadTest:
         }
         return await self.http.post("/v1/jumps", json=body)
 
+    async def _upload(self, user: User) -> httpx.Response:
+        """Upload a terrain of its own; a stored one is deleted again (not timed)."""
+        response = await self.http.post(
+            "/v1/scenes",
+            params={"format": "stl", "name": "load-test"},
+            content=terrain_stl(user.rng),
+            headers={"content-type": "application/octet-stream"},
+        )
+        if response.status_code in (200, 201):
+            scene_id = response.json()["id"]
+            await self.http.delete(f"/v1/scenes/{scene_id}")
+        return response
+
     async def _list(self, user: User) -> httpx.Response:
         return await self.http.get(user.rng.choice(LIST_PATHS))
 
@@ -260,6 +352,10 @@ class LoadTest:
         kinds = [kind for kind, weight in self.settings.mix.items() if weight > 0]
         weights = [self.settings.mix[kind] for kind in kinds]
         stats = {kind: KindStats() for kind in kinds}
+        health = KindStats()
+        memory_before = await self.memory()
+        stop_probe = asyncio.Event()
+        probe = asyncio.create_task(self._probe_health(health, stop_probe))
         started = time.monotonic()
         deadline = started + duration_s
         budget = iter(range(max_requests))
@@ -278,18 +374,31 @@ class LoadTest:
                     stats[kind].fail(key, describe(exc, self.settings.timeout_s))
                     user.state = None
                     continue
+                except Exception as exc:  # an answer that is not what the API says
+                    stats[kind].fail("exception", describe(exc))
+                    user.state = None
+                    continue
                 elapsed = time.perf_counter() - sent
                 if response.status_code < 400:
                     stats[kind].latencies.append(elapsed)
                 else:
                     stats[kind].fail(str(response.status_code), _error_message(response))
+                    pause = retry_after_s(response)  # a refused user waits as told
+                    if pause > 0:
+                        await asyncio.sleep(min(pause, max(0.0, deadline - time.monotonic())))
 
-        await asyncio.gather(*(user_loop(i) for i in range(concurrency)))
-        seconds = time.monotonic() - started
+        try:
+            await asyncio.gather(*(user_loop(i) for i in range(concurrency)))
+        finally:
+            seconds = time.monotonic() - started
+            stop_probe.set()
+            await probe
         return {
             "concurrency": concurrency,
             "seconds": round(seconds, 3),
             "kinds": {kind: s.summary(seconds) for kind, s in stats.items()},
+            "health": health.summary(seconds),
+            "memory_bytes": {"before": memory_before, "after": await self.memory()},
         }
 
 
@@ -317,30 +426,47 @@ async def run_ramp(
     ]
 
 
+def _mib(memory: dict[str, float]) -> str:
+    if not memory:
+        return "not reported"
+    parts = ", ".join(f"{name} {value / 2**20:.0f}" for name, value in sorted(memory.items()))
+    return f"{sum(memory.values()) / 2**20:.0f} MiB ({parts})"
+
+
 def format_table(levels: Sequence[dict[str, Any]]) -> str:
     """The summaries as a text table, one block per concurrency level."""
     lines = []
     for level in levels:
         lines.append(f"concurrency {level['concurrency']} ({level['seconds']:.1f} s)")
-        lines.append(f"  {'kind':<5} {'count':>6} {'ok':>6} {'per s':>8} {'p50 ms':>9} "
+        lines.append(f"  {'kind':<7} {'count':>6} {'ok':>6} {'per s':>8} {'p50 ms':>9} "
                      f"{'p99 ms':>9}  errors")  # fmt: skip
-        for kind, s in level["kinds"].items():
+        rows = list(level["kinds"].items())
+        if "health" in level:
+            rows.append(("/health", level["health"]))
+        for kind, s in rows:
             errors = ", ".join(f"{key}: {count}" for key, count in s["errors"].items()) or "-"
             p50 = f"{s['p50_ms']:.1f}" if "p50_ms" in s else "-"
             p99 = f"{s['p99_ms']:.1f}" if "p99_ms" in s else "-"
             lines.append(
-                f"  {kind:<5} {s['count']:>6} {s['ok']:>6} {s['per_second']:>8.2f} "
+                f"  {kind:<7} {s['count']:>6} {s['ok']:>6} {s['per_second']:>8.2f} "
                 f"{p50:>9} {p99:>9}  {errors}"
             )
             for key, message in s["error_examples"].items():
-                lines.append(f"        {key}: {message}")
+                lines.append(f"          {key}: {message}")
+        if "memory_bytes" in level:
+            memory = level["memory_bytes"]
+            lines.append(f"  memory before: {_mib(memory['before'])}")
+            lines.append(f"  memory after:  {_mib(memory['after'])}")
     return "\n".join(lines)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description="Load-test a Gecko server with what users do, at a ramp of concurrency "
+        "levels: throughput, p50/p99 latency and errors per kind, /health p50/p99, memory."
+    )
     parser.add_argument("--url", default="http://127.0.0.1:8000")
-    parser.add_argument("--concurrency", default="1,4,16", help="levels, e.g. 1,4,16,64")
+    parser.add_argument("--concurrency", default=DEFAULT_LEVELS, help="levels, e.g. 1,4,16,64")
     parser.add_argument("--duration", type=float, default=20.0, help="seconds per level")
     parser.add_argument("--requests", type=int, default=MAX_REQUESTS, help="at most, per level")
     parser.add_argument("--mix", default=DEFAULT_MIX, help=f"kind weights ({DEFAULT_MIX})")
@@ -375,6 +501,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except httpx.HTTPError as exc:
         print(f"load test failed: {describe(exc, args.timeout)}", file=sys.stderr)
+        return 2
+    except Exception as exc:  # never an empty message: the type and the text
+        print(f"load test failed: {describe(exc)}", file=sys.stderr)
         return 2
     print(json.dumps(levels, indent=2) if args.json else format_table(levels))
     failed = any(s["errors"] for level in levels for s in level["kinds"].values())

@@ -45,7 +45,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        for directory in (settings.scenes_path, settings.results_path, settings.roadmaps_path):
+        # The cache directory holds the offline data and BVH caches, written the same way.
+        stores = (settings.scenes_path, settings.results_path, settings.roadmaps_path)
+        for directory in (*stores, settings.cache_path):
             remove_leftovers(directory, older_than_s=settings.leftover_min_age_s)
         registry = registry_for(settings)
         registry.preload()

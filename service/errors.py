@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import logging
+import sqlite3
 from typing import Any
 
 from fastapi import FastAPI, Request
@@ -10,6 +12,8 @@ from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from service.context import annotate
+
+log = logging.getLogger("gecko.errors")
 
 
 class ApiError(Exception):
@@ -68,6 +72,10 @@ def install_error_handlers(app: FastAPI) -> None:
     async def _validation(_: Request, exc: RequestValidationError) -> JSONResponse:
         errors = exc.errors()
         first = errors[0] if errors else {"loc": (), "msg": "invalid request"}
+        if first.get("type") == "json_invalid":  # its location is a character position
+            position = first.get("loc", ("body", "?"))[-1]
+            message = f"body: not valid JSON at character {position} ({first.get('msg')})"
+            return JSONResponse(error_body("invalid_request", message, "body"), status_code=422)
         field = _field_path(first.get("loc", ()))
         message = f"{field}: {first.get('msg', 'invalid value')}"
         if len(errors) > 1:
@@ -76,11 +84,23 @@ def install_error_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(StarletteHTTPException)
     async def _http(_: Request, exc: StarletteHTTPException) -> JSONResponse:
-        code = {404: "not_found", 405: "method_not_allowed"}.get(exc.status_code, "http_error")
+        codes = {400: "invalid_body", 404: "not_found", 405: "method_not_allowed"}
+        code = codes.get(exc.status_code, "http_error")
         return JSONResponse(
             error_body(code, str(exc.detail), None),
             status_code=exc.status_code,
             headers=getattr(exc, "headers", None),
+        )
+
+    @app.exception_handler(sqlite3.OperationalError)
+    async def _store_busy(_: Request, exc: sqlite3.OperationalError) -> JSONResponse:
+        # The job store stayed locked by another process past its busy timeout (a process
+        # stopped or stuck mid-write): a refusal to retry, not a server error.
+        log.warning("job store unavailable: %s", exc)
+        return JSONResponse(
+            error_body("store_busy", f"the job store is busy ({exc}); retry in 1 s", None),
+            status_code=503,
+            headers={"Retry-After": "1"},
         )
 
     @app.exception_handler(Exception)

@@ -163,6 +163,12 @@ class SqliteJobStore:
             db.executescript(_SCHEMA)
         finally:
             db.close()
+        # Held open (after one read, which maps the WAL index and takes its shared lock): the
+        # per-call connections below are then never the last one to close, whose close
+        # checkpoints and removes the WAL under an exclusive lock that readers would wait on
+        # (for long, if that process was stopped or stuck meanwhile).
+        self._anchor = sqlite3.connect(path, check_same_thread=False)
+        self._anchor.execute("SELECT COUNT(*) FROM owners").fetchone()
 
     @contextmanager
     def _connect(self) -> Iterator[sqlite3.Connection]:
@@ -177,6 +183,20 @@ class SqliteJobStore:
                 db.execute("ROLLBACK")
                 raise
             db.execute("COMMIT")
+        finally:
+            db.close()
+
+    @contextmanager
+    def _read(self) -> Iterator[sqlite3.Connection]:
+        """A connection in one read transaction: a snapshot that, in WAL mode, never waits
+        for a writer (not even one stopped while it holds the write lock)."""
+        db = sqlite3.connect(self.path, timeout=BUSY_TIMEOUT_S, isolation_level=None)
+        try:
+            db.execute("BEGIN DEFERRED")
+            try:
+                yield db
+            finally:
+                db.execute("ROLLBACK")
         finally:
             db.close()
 
@@ -250,7 +270,11 @@ class SqliteJobStore:
         )
 
     def get(self, job_id: str) -> Job | None:
-        with self._connect() as db:
+        with self._read() as db:  # the usual case: a read that waits for nobody
+            job = self._select(db, job_id)
+            if job is None or not job.active or not self._owner_gone(db, job.owner):
+                return job
+        with self._connect() as db:  # its owner is gone: say so, once
             return self._reap(db, self._select(db, job_id))
 
     def start(self, job_id: str) -> bool:
@@ -301,7 +325,7 @@ class SqliteJobStore:
         if not job_ids:
             return {}
         marks = ",".join("?" * len(job_ids))
-        with self._connect() as db:
+        with self._read() as db:
             rows = db.execute(f"SELECT id, state FROM jobs WHERE id IN ({marks})", job_ids)
             return {row[0]: row[1] for row in rows.fetchall()}
 
@@ -323,11 +347,16 @@ class SqliteJobStore:
             db.execute("DELETE FROM owners WHERE id = ?", (owner,))
 
     def counts(self) -> dict[tuple[str, str], int]:
-        with self._connect() as db:
+        with self._read() as db:
             active = db.execute(
                 f"SELECT {_COLUMNS} FROM jobs WHERE state IN ('queued', 'running')"
             ).fetchall()
-            for row in active:
-                self._reap(db, self._job(row))
+            orphans = [row[0] for row in active if self._owner_gone(db, row[7])]
+            if not orphans:
+                rows = db.execute("SELECT kind, state, COUNT(*) FROM jobs GROUP BY kind, state")
+                return {(kind, state): int(n) for kind, state, n in rows.fetchall()}
+        with self._connect() as db:  # some owner is gone: its jobs are interrupted first
+            for job_id in orphans:
+                self._reap(db, self._select(db, job_id))
             rows = db.execute("SELECT kind, state, COUNT(*) FROM jobs GROUP BY kind, state")
             return {(kind, state): int(n) for kind, state, n in rows.fetchall()}

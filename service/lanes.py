@@ -78,6 +78,15 @@ class Gate:
         """Admitted pieces of work not holding a slot yet (the queue's depth)."""
         return self._admitted - self.running
 
+    @property
+    def live_processes(self) -> int:
+        """Processes of the gate alive now (none: a plain gate runs work in the caller)."""
+        return 0
+
+    def process_ids(self) -> list[int]:
+        """Ids of the gate's live processes."""
+        return []
+
     def _refuse(self, code: str, message: str) -> ApiError:
         self._metrics.refused.labels(self.name, code).inc()
         retry = RETRY_AFTER_S[self.name]
@@ -176,13 +185,33 @@ class Lane(Gate):
         ours, theirs = self._context.Pipe(duplex=True)
         process = self._context.Process(
             target=serve_tasks,
-            args=(theirs, self._settings_json),
+            args=(theirs, self._settings_json, os.getpid()),
             name=f"gecko-{self.name}",
             daemon=True,
         )
         process.start()
         theirs.close()  # only the child holds it now: its death reads as EOF on ours
         return _Worker(process, ours)
+
+    @property
+    def live_processes(self) -> int:
+        """The lane's processes alive now (idle or busy; spawned on demand, so 0 at first)."""
+        return len(self.process_ids())
+
+    def process_ids(self) -> list[int]:
+        """Ids of the lane's live processes, idle or busy."""
+        workers = [*self._idle, *self._busy]
+        return [w.process.pid for w in workers if w.process.pid and w.process.is_alive()]
+
+    def _replace(self) -> None:
+        """Start a fresh process in place of one that died under its task, so the next task
+        does not wait for it to start (it stays idle until then)."""
+        if self._closed:
+            return
+        try:
+            self._idle.append(self._spawn())
+        except OSError as exc:  # out of processes or memory: the next task tries again
+            log.error("could not start a replacement %s process: %s", self.name, exc)
 
     def _take_worker(self) -> _Worker:
         while self._idle:
@@ -255,7 +284,7 @@ class Lane(Gate):
         loop = asyncio.get_running_loop()
         answer = loop.run_in_executor(self._readers, worker.connection.recv)
         answer.add_done_callback(_retrieve)  # a killed process's EOF is expected, not news
-        healthy = False
+        healthy = lost = False
         try:
             timeout = None if finish_by is None else finish_by - time.monotonic()
             async with asyncio.timeout(timeout):
@@ -268,9 +297,23 @@ class Lane(Gate):
             self._metrics.cancelled.labels(self.name, "cancelled").inc()
             raise
         except (EOFError, OSError) as exc:
-            log.error("a %s process died under its task: %r", self.name, exc)
+            worker.process.join(0.2)  # dead (its pipe closed): reaped at once, for its code
+            log.error(
+                "a %s process died under its task (exit code %s): %r",
+                self.name,
+                worker.process.exitcode,
+                exc,
+            )
             self._metrics.worker_restarts.inc()
-            raise ApiError(503, "worker_lost", "a planning process died; retry", None) from exc
+            lost = True
+            raise ApiError(
+                503,
+                "worker_lost",
+                f"the {self.name} process running this request died; a fresh one has "
+                "replaced it: retry",
+                None,
+                {"Retry-After": str(RETRY_AFTER_S[self.name])},
+            ) from exc
         finally:
             self._busy.discard(worker)
             if healthy:
@@ -278,6 +321,8 @@ class Lane(Gate):
                 self._idle.append(worker)
             else:
                 self._discard(worker, kill=True)
+                if lost:
+                    self._replace()
         if kind == "error":
             raise cast(BaseException, value)
         return cast(T, value)

@@ -7,7 +7,9 @@ requests it served: a scrape reaches one of them. Prometheus' multiprocess mode 
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Iterable, Mapping
+from pathlib import Path
 from typing import Protocol
 
 from prometheus_client import CollectorRegistry, Counter, Gauge, Histogram, generate_latest
@@ -19,6 +21,7 @@ from service.settings import LATENCY_BUCKETS_S
 JOB_KINDS = ("roadmap", "plan")
 JOB_STATES = ("queued", "running", "done", "failed", "cancelled", "interrupted")
 
+_PAGE_BYTES = os.sysconf("SC_PAGE_SIZE") if hasattr(os, "sysconf") else 4096
 UNMATCHED_ROUTE = "<unmatched>"  # one label for every path no route serves (bounded labels)
 
 
@@ -35,6 +38,11 @@ class GateLike(Protocol):
     @property
     def waiting(self) -> int: ...
 
+    @property
+    def live_processes(self) -> int: ...
+
+    def process_ids(self) -> list[int]: ...
+
 
 class Gates(Collector):
     """Each lane's depth, running work and bounds, read at each scrape."""
@@ -49,6 +57,10 @@ class Gates(Collector):
             "gecko_queue_limit": ("Most work that may wait for a slot, by lane.", "queue"),
             "gecko_lane_running": ("Work holding a slot (running), by lane.", "running"),
             "gecko_lane_slots": ("Slots (processes, or uploads at once), by lane.", "slots"),
+            "gecko_lane_processes": (
+                "Processes alive now, by lane (started on demand; a dead one is replaced).",
+                "live_processes",
+            ),
         }
         for name, (text, attribute) in families.items():
             family = GaugeMetricFamily(name, text, labels=["lane"])
@@ -63,6 +75,28 @@ class Gates(Collector):
             [], float(sum(g.running + g.waiting for g in gates if g.name == "interactive"))
         )
         yield tasks
+        memory = GaugeMetricFamily(
+            "gecko_resident_memory_bytes",
+            "Resident memory of this service worker's process (process=service) and of each "
+            "lane's processes together (process=<lane>), from /proc (Linux only).",
+            labels=["process"],
+        )
+        own = resident_bytes(os.getpid())
+        if own is not None:
+            memory.add_metric(["service"], float(own))
+            for gate in gates:
+                sizes = [resident_bytes(pid) for pid in gate.process_ids()]
+                memory.add_metric([gate.name], float(sum(size or 0 for size in sizes)))
+        yield memory
+
+
+def resident_bytes(pid: int) -> int | None:
+    """Resident set size of process ``pid`` in bytes (from ``/proc``), None if unknown."""
+    try:
+        fields = Path(f"/proc/{pid}/statm").read_text().split()
+        return int(fields[1]) * _PAGE_BYTES
+    except (OSError, IndexError, ValueError):
+        return None
 
 
 class JobCounts(Collector):

@@ -2,9 +2,10 @@
 
 FastAPI documents a 422 with its own ``HTTPValidationError`` body on every operation with
 parameters; Gecko answers every error with :class:`~service.schemas.ErrorBody` instead, and
-a route whose only parameters are free-text path ids never answers 422. The document is
-rewritten accordingly. ``/docs`` is Swagger UI from ``service/static/vendor/swagger-ui``
-(vendored from its npm release, like three.js for the viewer); ReDoc is not served.
+a route whose only parameters are free-text path ids never answers 422. A JSON body that does
+not decode (not UTF-8) is a 400, which FastAPI does not document. The document is rewritten
+accordingly. ``/docs`` is Swagger UI from ``service/static/vendor/swagger-ui`` (vendored
+from its npm release, like three.js for the viewer); ReDoc is not served.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ SWAGGER_UI = "/static/vendor/swagger-ui"
 _FASTAPI_422 = "#/components/schemas/HTTPValidationError"
 _ERROR_BODY = "#/components/schemas/ErrorBody"
 _INVALID = "invalid input: the message names the field and the limit"
+_NOT_JSON = "the body cannot be read as text (invalid_body: not UTF-8)"
 
 
 def _can_fail_validation(operation: dict[str, Any]) -> bool:
@@ -34,10 +36,20 @@ def _can_fail_validation(operation: dict[str, Any]) -> bool:
     return False
 
 
+def _takes_json(operation: dict[str, Any]) -> bool:
+    """True when the operation's body is JSON (a body that does not parse is a 400)."""
+    return "application/json" in operation.get("requestBody", {}).get("content", {})
+
+
 def _rewrite(spec: dict[str, Any]) -> dict[str, Any]:
     for path_item in spec.get("paths", {}).values():
         for operation in path_item.values():
             responses = operation.get("responses", {})
+            if _takes_json(operation) and "400" not in responses:
+                responses["400"] = {
+                    "description": _NOT_JSON,
+                    "content": {"application/json": {"schema": {"$ref": _ERROR_BODY}}},
+                }
             generated = responses.get("422", {})
             content = generated.get("content", {}).get("application/json", {})
             if content.get("schema", {}).get("$ref") != _FASTAPI_422:

@@ -5,7 +5,14 @@ from __future__ import annotations
 import math
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    ConfigDict,
+    Field,
+    WithJsonSchema,
+    model_validator,
+)
 from pydantic.config import JsonDict
 
 Vector3 = tuple[float, float, float]
@@ -153,22 +160,44 @@ TimeBudget = Annotated[
 Rate = Annotated[float, Field(gt=0, le=240, description="keyframes per second")]
 
 
+def _unit_quaternion(value: Quaternion) -> Quaternion:
+    """``value`` scaled to unit length: any finite quaternion but zero has a direction (it is
+    scaled by its largest component first, so huge or tiny components neither overflow nor
+    underflow)."""
+    scale = max(abs(v) for v in value)
+    if not math.isfinite(scale) or scale == 0.0:
+        raise ValueError("orientation must be a finite, non-zero quaternion [x, y, z, w]")
+    scaled = [v / scale for v in value]
+    norm = math.sqrt(sum(v * v for v in scaled))
+    x, y, z, w = (v / norm for v in scaled)
+    return (x, y, z, w)
+
+
+# An input orientation: any quaternion but zero, normalised on input. The schema says so:
+# four numbers, not all zero (JSON Schema's const compares numbers, so -0.0 is zero too).
+OrientationIn = Annotated[
+    Quaternion,
+    AfterValidator(_unit_quaternion),
+    WithJsonSchema(
+        {
+            "type": "array",
+            "prefixItems": [{"type": "number"}] * 4,
+            "minItems": 4,
+            "maxItems": 4,
+            "not": {"prefixItems": [{"const": 0}] * 4},
+            "description": "quaternion [x, y, z, w], any length but zero (normalised on input)",
+        }
+    ),
+]
+
+
 class PoseIn(BaseModel):
     """A root pose: position (m, world) and orientation [x, y, z, w] (normalised on input)."""
 
     model_config = ConfigDict(extra="forbid")
 
     position: Point3
-    orientation: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 1.0)
-
-    @field_validator("orientation")
-    @classmethod
-    def _unit(cls, value: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
-        norm = math.sqrt(sum(v * v for v in value))
-        if not math.isfinite(norm) or norm < 1e-9:
-            raise ValueError("orientation must be a finite, non-zero quaternion [x, y, z, w]")
-        x, y, z, w = (v / norm for v in value)
-        return (x, y, z, w)
+    orientation: OrientationIn = (0.0, 0.0, 0.0, 1.0)
 
 
 class EndpointIn(BaseModel):
@@ -181,7 +210,7 @@ class EndpointIn(BaseModel):
     )
 
     position: Point3 | None = None
-    orientation: tuple[float, float, float, float] | None = None
+    orientation: OrientationIn | None = None
     stand_at: Point3 | None = Field(
         default=None, description="a point on the scene; the service finds a standing state"
     )
@@ -190,8 +219,6 @@ class EndpointIn(BaseModel):
     def _one_kind(self) -> EndpointIn:
         if (self.position is None) == (self.stand_at is None):
             raise ValueError("give exactly one of 'position' (with 'orientation') or 'stand_at'")
-        if self.orientation is not None:
-            PoseIn(position=(0.0, 0.0, 0.0), orientation=self.orientation)
         return self
 
 
@@ -260,7 +287,18 @@ class KeyframeOut(BaseModel):
 class StepActionIn(BaseModel):
     """One Twister move: create or break a limb's contact, or let the game choose ('auto')."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(
+        extra="forbid",
+        json_schema_extra={
+            # 'create' and 'break' name their limb: the kind is 'auto', or a limb is given.
+            "anyOf": [
+                {"properties": {"kind": {"const": "auto"}}},
+                {"required": ["limb"], "properties": {"limb": {"type": "string"}}},
+            ],
+            "description": "One Twister move: 'create' or 'break' the contact of 'limb' "
+            "(required for both), or 'auto' (the game picks a limb and a move).",
+        },
+    )
 
     kind: Literal["create", "break", "auto"]
     limb: str | None = Field(default=None, max_length=100)

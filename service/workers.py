@@ -8,6 +8,11 @@ scenes load once per process (from the on-disk caches).
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
+import os
+import signal
+import sys
 from multiprocessing.connection import Connection
 from typing import Any
 
@@ -54,9 +59,33 @@ def worker_settings() -> Settings:
     return _WORKER_SETTINGS
 
 
-def serve_tasks(connection: Connection, settings_json: str) -> None:
+_PR_SET_PDEATHSIG = 1  # prctl(2) option: a signal for this process when its parent dies
+
+
+def die_with_parent(parent_pid: int) -> bool:
+    """Ask Linux to SIGKILL this process when the thread that started it exits (its service
+    worker killed, even with ``kill -9``), so no planning process outlives its service
+    worker; exits at once if that parent is already gone. False where unsupported."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+        if libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0) != 0:
+            return False
+    except (OSError, AttributeError):
+        return False
+    if os.getppid() != parent_pid:  # the parent died before the request took effect
+        os._exit(1)
+    return True
+
+
+def serve_tasks(connection: Connection, settings_json: str, parent_pid: int | None = None) -> None:
     """A planning process's loop: receive ``(function, args)``, send back ``("ok", value)``
-    or ``("error", exception)``, until the service closes its end of the pipe (or dies)."""
+    or ``("error", exception)``, until the service closes its end of the pipe (or dies).
+
+    With ``parent_pid`` (the service worker's pid) the process dies with that worker."""
+    if parent_pid is not None:
+        die_with_parent(parent_pid)
     _init_worker(settings_json)
     while True:
         try:

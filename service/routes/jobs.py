@@ -15,7 +15,15 @@ from service.schemas import ErrorBody, JobResult, JobStatus
 
 router = APIRouter(prefix="/v1/jobs", tags=["jobs"])
 MAX_ID_LENGTH = 128
-JOB_404: dict[int | str, dict[str, Any]] = {404: {"model": ErrorBody, "description": "unknown job"}}
+STORE_BUSY: dict[str, Any] = {
+    "model": ErrorBody,
+    "description": "the job store stayed locked by another process (store_busy), with Retry-After",
+    "headers": {"Retry-After": {"description": "seconds to wait", "schema": {"type": "integer"}}},
+}
+JOB_404: dict[int | str, dict[str, Any]] = {
+    404: {"model": ErrorBody, "description": "unknown job"},
+    503: STORE_BUSY,
+}
 CANCEL_RESPONSES: dict[int | str, dict[str, Any]] = {
     **JOB_404,
     409: {"model": ErrorBody, "description": "the job has already finished"},

@@ -16,7 +16,13 @@ from service.errors import not_found
 from service.interactive import BUSY_RESPONSES, run_interactive
 from service.job_runner import JobContext
 from service.jobs import Job
-from service.routes.jobs import CANCEL_RESPONSES, cancel_job, find_job, runner_of
+from service.routes.jobs import (
+    CANCEL_RESPONSES,
+    STORE_BUSY,
+    cancel_job,
+    find_job,
+    runner_of,
+)
 from service.routes.results import (
     RESULT_RESPONSES,
     FormatQuery,
@@ -120,7 +126,7 @@ async def create_roadmap(
     )
 
 
-@router.get("/roadmaps/{roadmap_id}", responses={404: _ERRORS[404]})
+@router.get("/roadmaps/{roadmap_id}", responses={404: _ERRORS[404], 503: STORE_BUSY})
 async def get_roadmap(roadmap_id: str, request: Request, settings: SettingsDep) -> RoadmapStatus:
     """Status (queued, running, done, failed, cancelled, interrupted), progress in [0, 1]
     and size."""

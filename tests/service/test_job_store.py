@@ -3,12 +3,22 @@ service worker died without saying so (its process is gone)."""
 
 from __future__ import annotations
 
+import asyncio
+import sqlite3
 import subprocess
 import sys
+import time
 from pathlib import Path
 
-from service.jobs import SqliteJobStore, owner_id
-from tests.paths import REPO_ROOT
+import httpx
+import pytest
+from asgi_lifespan import LifespanManager
+
+import service.jobs
+from service.app import create_app
+from service.jobs import BUSY_TIMEOUT_S, SqliteJobStore, owner_id
+from service.settings import Settings
+from tests.paths import REPO_ROOT, gecko_cache_dir
 
 
 def test_a_job_goes_queued_running_done_and_is_never_overwritten(tmp_path: Path) -> None:
@@ -76,3 +86,56 @@ def test_jobs_of_a_worker_that_died_are_reported_interrupted(tmp_path: Path) -> 
     stopped = store.get("j3")
     assert stopped is not None and (stopped.state, stopped.message) == ("interrupted", "stopping")
     assert store.counts() == {("roadmap", "interrupted"): 1, ("plan", "interrupted"): 2}
+
+
+def _hold_write_lock(path: Path) -> sqlite3.Connection:
+    """Another process's writer stopped mid-transaction (as SIGSTOP leaves one)."""
+    writer = sqlite3.connect(path, isolation_level=None)
+    writer.execute("BEGIN IMMEDIATE")
+    writer.execute("UPDATE owners SET heartbeat_at = heartbeat_at")
+    return writer
+
+
+def test_reads_wait_for_no_writer(tmp_path: Path) -> None:
+    store = SqliteJobStore(tmp_path / "jobs.sqlite3")
+    owner = owner_id()
+    store.heartbeat(owner)
+    store.submit("r1", "roadmap", {}, owner)
+    writer = _hold_write_lock(tmp_path / "jobs.sqlite3")
+    try:
+        started = time.monotonic()
+        assert store.get("r1").state == "queued"  # type: ignore[union-attr]
+        assert store.states(["r1"]) == {"r1": "queued"}
+        assert store.counts() == {("roadmap", "queued"): 1}
+        assert time.monotonic() - started < BUSY_TIMEOUT_S  # none of them waited it out
+    finally:
+        writer.close()
+
+
+def test_a_store_locked_past_its_timeout_is_a_503_to_retry(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(service.jobs, "BUSY_TIMEOUT_S", 0.2)
+    settings = Settings(
+        home=tmp_path, cache_dir=gecko_cache_dir(), characters="quadruped", log_level="error"
+    )
+    app = create_app(settings)
+
+    async def go() -> httpx.Response:
+        async with (
+            LifespanManager(app),
+            httpx.AsyncClient(transport=httpx.ASGITransport(app=app), base_url="http://g") as c,
+        ):
+            store: SqliteJobStore = app.state.jobs.store
+            store.submit("j1", "plan", {}, app.state.jobs.owner)
+            writer = _hold_write_lock(settings.jobs_db_path)
+            try:
+                assert (await c.get("/v1/jobs/j1")).status_code == 200  # a read
+                return await c.delete("/v1/jobs/j1")  # a write: waits, then gives up
+            finally:
+                writer.close()
+
+    answer = asyncio.run(go())
+    assert answer.status_code == 503, answer.text
+    assert answer.headers["retry-after"] == "1"
+    assert answer.json()["error"]["code"] == "store_busy"

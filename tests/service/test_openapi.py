@@ -10,7 +10,7 @@ import pytest
 from pydantic import ValidationError
 
 from planner.result import PlanStatus
-from service.schemas import EndpointIn, TwisterStepRequest
+from service.schemas import EndpointIn, StepActionIn, TwisterStepRequest
 
 pytestmark = pytest.mark.anyio
 ERROR_REF = "#/components/schemas/ErrorBody"
@@ -57,7 +57,9 @@ async def test_routes_document_the_errors_they_give(client: httpx.AsyncClient) -
     assert codes("POST", "/v1/scenes") >= {"201", "413", "422"}
     # A free-text id in the path cannot be refused as invalid: no 422 is promised there.
     assert codes("GET", "/v1/characters/{character_id}") == {"200", "404"}
-    assert codes("GET", "/v1/roadmaps/{roadmap_id}") == {"200", "404"}
+    # Job lookups wait for no writer, but a store locked past its timeout is a 503.
+    assert codes("GET", "/v1/roadmaps/{roadmap_id}") == {"200", "404", "503"}
+    assert codes("GET", "/v1/jobs/{job_id}") == {"200", "404", "503"}
     assert codes("GET", "/health") == {"200"}
     assert "/metrics" in {path for _, path in operations}
 
@@ -122,6 +124,52 @@ async def test_exactly_one_of_is_in_the_schema_and_agrees_with_the_server(
             accepted = False
         assert _one_of_accepts(schema, instance) == accepted, instance
     assert "exactly one" in schema["description"]
+
+
+async def test_json_bodies_that_do_not_parse_are_documented_400s(
+    client: httpx.AsyncClient,
+) -> None:
+    operations = _operations(await _spec(client))
+    for key, operation in operations.items():
+        if "application/json" in operation.get("requestBody", {}).get("content", {}):
+            assert "400" in operation["responses"], key
+    json = {"content-type": "application/json"}
+    answer = await client.post("/v1/jumps", content=b"S,\xff\xfe", headers=json)
+    assert answer.status_code == 400
+    assert answer.json()["error"]["code"] == "invalid_body"
+    answer = await client.post("/v1/jumps", content=b"{not json", headers=json)
+    assert answer.status_code == 422
+    assert answer.json()["error"]["field"] == "body"
+    assert "not valid JSON at character 1" in answer.json()["error"]["message"]
+
+
+async def test_step_actions_and_orientations_say_what_the_server_accepts(
+    client: httpx.AsyncClient,
+) -> None:
+    schemas = (await _spec(client))["components"]["schemas"]
+    action = schemas["StepActionIn"]
+    for instance, accepted in (
+        ({"kind": "auto"}, True),
+        ({"kind": "break", "limb": "lf_foot"}, True),
+        ({"kind": "break"}, False),
+        ({"kind": "create", "limb": None}, False),
+    ):
+        branches = action["anyOf"]
+        auto = instance["kind"] == branches[0]["properties"]["kind"]["const"]
+        named = isinstance(instance.get("limb"), str)
+        assert auto or named == accepted, instance
+        try:
+            StepActionIn.model_validate(instance)
+            assert accepted, instance
+        except ValidationError:
+            assert not accepted, instance
+    orientation = schemas["EndpointIn"]["properties"]["orientation"]["anyOf"][0]
+    assert orientation["not"] == {"prefixItems": [{"const": 0}] * 4}
+    for value in ([0, 0, 0, 0], [0.0, -0.0, 0, 0]):
+        with pytest.raises(ValidationError, match="non-zero quaternion"):
+            EndpointIn.model_validate({"position": [0, 0, 1], "orientation": value})
+    huge = EndpointIn.model_validate({"position": [0, 0, 1], "orientation": [1e300, 0, 0, 1e300]})
+    assert huge.orientation == pytest.approx((2**-0.5, 0, 0, 2**-0.5))
 
 
 async def test_requests_carry_examples(client: httpx.AsyncClient) -> None:

@@ -83,6 +83,27 @@ async def test_leftovers_are_removed_at_start_and_never_listed(settings: Setting
         assert health["scenes"] == len(listing.json())
 
 
+async def test_leftovers_of_cache_writes_are_removed_at_start(
+    settings: Settings, tmp_path: Path
+) -> None:
+    """A process killed while writing offline data or a BVH cache leaves ``*.npz.tmp`` or
+    ``.bvh-*`` in the cache directory: removed at the next start, the real files kept."""
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    for real in settings.cache_path.iterdir():  # the built data, linked rather than rebuilt
+        if real.is_file() and not is_temporary(real.name):
+            (cache / real.name).symlink_to(real)
+    kept = sorted(path.name for path in cache.iterdir())
+    stale = [cache / "humanoid-0123.npz.tmp", cache / ".bvh-k2x9"]
+    for path in stale:
+        path.write_bytes(b"half a file")
+        _age(path, HOUR_S)
+    async with _serve(settings.model_copy(update={"cache_dir": cache})) as http:
+        assert (await http.get("/health")).status_code == 200
+        assert not any(path.exists() for path in stale)
+    assert kept and all((cache / name).exists() for name in kept)
+
+
 async def test_a_broken_stored_scene_does_not_fail_the_listing(settings: Settings) -> None:
     async with _serve(settings) as http:
         good = (await http.post("/v1/scenes?format=stl", content=_box_stl())).json()["id"]
