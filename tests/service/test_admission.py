@@ -10,7 +10,6 @@ from __future__ import annotations
 import json
 import socket
 import threading
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -20,7 +19,7 @@ import pytest
 
 from service.settings import Settings
 from tests.live_fixtures import LIVE_JUMP, LIVE_PLAN, LIVE_STEP
-from tests.live_server import live_server
+from tests.live_server import live_server, wait_until
 from tests.paths import gecko_cache_dir
 from tests.prometheus_text import metric_samples, sample_value
 
@@ -64,17 +63,6 @@ def server_b(shared_home: Path) -> Iterator[str]:
     """The other server on the same home (another uvicorn worker, as far as jobs go)."""
     with live_server(_settings(shared_home)) as url:
         yield url
-
-
-def _until(check: Any, what: str) -> Any:
-    """Poll ``check()`` until it returns something truthy; fail after WAIT_S."""
-    deadline = time.monotonic() + WAIT_S
-    while True:
-        value = check()
-        if value:
-            return value
-        assert time.monotonic() < deadline, f"never saw: {what}"
-        time.sleep(0.1)
 
 
 def _lane(url: str, metric: str, lane: str) -> float:
@@ -147,7 +135,7 @@ def test_full_queue_deadline_from_arrival_and_client_disconnect(server_a: str) -
     before = stopped()
     long_jump = _raw_post(server_a, "/v1/jumps", LONG_JUMP)
     try:
-        _until(lambda: _lane(server_a, "gecko_lane_running", "interactive") == 1, "jump runs")
+        wait_until(lambda: _lane(server_a, "gecko_lane_running", "interactive") == 1, "jump runs")
         # The one waiting place: a step whose budget runs out while it waits is refused,
         # having cost nothing (its budget counts from its arrival, not from its start).
         waiting: dict[str, httpx.Response] = {}
@@ -158,7 +146,7 @@ def test_full_queue_deadline_from_arrival_and_client_disconnect(server_a: str) -
             )
         )
         thread.start()
-        _until(lambda: _lane(server_a, "gecko_queue_depth", "interactive") == 1, "step waits")
+        wait_until(lambda: _lane(server_a, "gecko_queue_depth", "interactive") == 1, "step waits")
         # No waiting place left: refused at once.
         full = httpx.post(f"{server_a}/v1/twister/step", json=LIVE_STEP, timeout=120)
         _refused(full, "queue_full", "GECKO_INTERACTIVE_QUEUE=1")
@@ -166,7 +154,7 @@ def test_full_queue_deadline_from_arrival_and_client_disconnect(server_a: str) -
         _refused(waiting["r"], "queue_timeout")
     finally:
         long_jump.close()  # the client goes away: the jump's process is killed
-    _until(lambda: _lane(server_a, "gecko_lane_running", "interactive") == 0, "jump stopped")
+    wait_until(lambda: _lane(server_a, "gecko_lane_running", "interactive") == 0, "jump stopped")
     assert stopped() == before + 1
     step = httpx.post(f"{server_a}/v1/twister/step", json=LIVE_STEP, timeout=120)
     assert step.status_code == 200, step.text
@@ -181,7 +169,7 @@ def test_an_async_plan_is_a_job_any_worker_answers(server_a: str, server_b: str)
     assert (job["kind"], job["status"]) == ("plan", "queued")
     seen = _job(server_b, location)  # the other worker reads the same job
     assert seen["id"] == job["id"] and seen["status"] in {"queued", "running", "done"}
-    done = _until(lambda: (j := _job(server_b, location))["status"] == "done" and j, "done")
+    done = wait_until(lambda: (j := _job(server_b, location))["status"] == "done" and j, "done")
     result = done["result"]
     assert (result["kind"], result["url"]) == ("plan", f"/v1/plans/{result['id']}")
     # The plan is the synchronous answer: same id, stored where every worker finds it.
@@ -206,19 +194,19 @@ def test_a_delete_on_one_worker_stops_the_job_on_the_other(server_a: str, server
     posted = httpx.post(f"{server_a}/v1/roadmaps", json=BIG_ROADMAP, timeout=60)
     assert posted.status_code == 202, posted.text
     rid = posted.json()["id"]
-    _until(lambda: _job(server_b, f"/v1/jobs/{rid}")["status"] == "running", "build runs")
+    wait_until(lambda: _job(server_b, f"/v1/jobs/{rid}")["status"] == "running", "build runs")
     deleted = httpx.delete(f"{server_b}/v1/jobs/{rid}", timeout=30)
     assert deleted.status_code == 200, deleted.text
     assert deleted.json()["status"] == "cancelled"
     # Server A sees the DELETE in the store and kills the build's process.
-    _until(lambda: _lane(server_a, "gecko_lane_running", "jobs") == 0, "A's job process freed")
+    wait_until(lambda: _lane(server_a, "gecko_lane_running", "jobs") == 0, "A's job process freed")
     assert stopped() == before + 1
     assert _job(server_a, f"/v1/roadmaps/{rid}")["status"] == "cancelled"
     # The freed process builds the next roadmap.
     small = httpx.post(f"{server_a}/v1/roadmaps", json=SMALL_ROADMAP, timeout=60)
     assert small.status_code in (200, 202), small.text
     path = f"/v1/roadmaps/{small.json()['id']}"
-    _until(lambda: _job(server_b, path)["status"] == "done", "the small roadmap is built")
+    wait_until(lambda: _job(server_b, path)["status"] == "done", "the small roadmap is built")
 
 
 def test_a_job_survives_a_restart_as_interrupted(shared_home: Path, server_b: str) -> None:
@@ -226,7 +214,7 @@ def test_a_job_survives_a_restart_as_interrupted(shared_home: Path, server_b: st
         posted = httpx.post(f"{first}/v1/roadmaps", json=BIG_ROADMAP, timeout=60)
         assert posted.status_code == 202, posted.text
         rid = posted.json()["id"]
-        _until(lambda: _job(first, f"/v1/roadmaps/{rid}")["status"] == "running", "build runs")
+        wait_until(lambda: _job(first, f"/v1/roadmaps/{rid}")["status"] == "running", "build runs")
     # That server stopped mid-build: every worker says so, and why.
     status = _job(server_b, f"/v1/roadmaps/{rid}")
     assert status["status"] == "interrupted", status

@@ -14,8 +14,6 @@ import os
 import signal
 import sqlite3
 import threading
-import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +23,7 @@ import pytest
 
 from tests.live_fixtures import LIVE_JUMP, LIVE_PLAN, LIVE_STEP
 from tests.live_process import ServerProcess, server_process
+from tests.live_server import wait_until
 from tests.prometheus_text import metric_samples, sample_value
 
 pytestmark = pytest.mark.skipif(not hasattr(signal, "SIGKILL"), reason="POSIX signals")
@@ -33,16 +32,6 @@ LONG_JUMP = {**LIVE_JUMP, "nodes": 10_000, "time_budget_s": 60}  # builds for ~3
 BIG_ROADMAP = {"character": "quadruped", "scene": "gaps", "nodes": 10_000, "seed": 100}
 SMALL_ROADMAP = {"character": "quadruped", "scene": "gaps", "nodes": 60, "seed": 7}
 WAIT_S = 180.0
-
-
-def _until(check: Callable[[], Any], what: str, timeout_s: float = WAIT_S) -> Any:
-    deadline = time.monotonic() + timeout_s
-    while True:
-        value = check()
-        if value:
-            return value
-        assert time.monotonic() < deadline, f"never saw: {what}"
-        time.sleep(0.1)
 
 
 class Call:
@@ -108,7 +97,7 @@ def _stop_and_check_tree(server: ServerProcess) -> None:
     assert tree, "the server has no child processes to check"
     assert server.terminate() in (0, -signal.SIGTERM), server.log()
     assert "Application shutdown complete" in server.log()
-    _until(lambda: _gone(tree), f"every process of the tree gone ({tree})", 30)
+    wait_until(lambda: _gone(tree), f"every process of the tree gone ({tree})", 30)
 
 
 def test_a_killed_compute_process_fails_only_its_request(tmp_path: Path) -> None:
@@ -117,12 +106,12 @@ def test_a_killed_compute_process_fails_only_its_request(tmp_path: Path) -> None
         url = server.url
         # One long jump runs alone: the lane's only process is its.
         doomed = Call("POST", f"{url}/v1/jumps", LONG_JUMP)
-        victims = _until(lambda: server.compute_processes()[server.pid], "a compute process")
+        victims = wait_until(lambda: server.compute_processes()[server.pid], "a compute process")
         assert len(victims) == 1
-        _until(lambda: _lane(url, "gecko_lane_running") == 1, "the jump runs")
+        wait_until(lambda: _lane(url, "gecko_lane_running") == 1, "the jump runs")
         # A plan takes the other process.
         survivor = Call("POST", f"{url}/v1/plans", LIVE_PLAN)
-        _until(lambda: _lane(url, "gecko_lane_running") == 2, "the plan runs too")
+        wait_until(lambda: _lane(url, "gecko_lane_running") == 2, "the plan runs too")
         os.kill(victims[0], signal.SIGKILL)
 
         lost = doomed.result()
@@ -139,7 +128,7 @@ def test_a_killed_compute_process_fails_only_its_request(tmp_path: Path) -> None
             pids = server.compute_processes()[server.pid]
             return len(pids) == 2 and victims[0] not in pids
 
-        _until(replaced, "a replacement process")
+        wait_until(replaced, "a replacement process")
         samples = metric_samples(url)
         assert sample_value(samples, "gecko_worker_pool_restarts_total") == 1
         assert sample_value(samples, "gecko_lane_processes", lane="interactive") == 2
@@ -148,7 +137,7 @@ def test_a_killed_compute_process_fails_only_its_request(tmp_path: Path) -> None
         # An idle process killed: the next requests never see it.
         idle = server.compute_processes()[server.pid]
         os.kill(idle[0], signal.SIGKILL)
-        _until(lambda: _gone(idle[:1]), "the idle process dead")
+        wait_until(lambda: _gone(idle[:1]), "the idle process dead")
         later = [Call("POST", f"{url}/v1/twister/step", LIVE_STEP) for _ in range(2)]
         for call in later:
             step = call.result()
@@ -160,14 +149,14 @@ def test_a_killed_compute_process_fails_only_its_request(tmp_path: Path) -> None
         posted = httpx.post(f"{url}/v1/roadmaps", json=BIG_ROADMAP, timeout=60)
         assert posted.status_code == 202, posted.text
         build = posted.json()["id"]
-        _until(lambda: _job(url, build)["status"] == "running", "the build runs")
+        wait_until(lambda: _job(url, build)["status"] == "running", "the build runs")
         (builder,) = set(server.compute_processes()[server.pid]) - before
         os.kill(builder, signal.SIGKILL)
-        failed = _until(lambda: (j := _job(url, build))["status"] == "failed" and j, "failed")
+        failed = wait_until(lambda: (j := _job(url, build))["status"] == "failed" and j, "failed")
         assert failed["message"].startswith("worker_lost: the jobs process running this")
         small = httpx.post(f"{url}/v1/roadmaps", json=SMALL_ROADMAP, timeout=60)
         assert small.status_code in (200, 202), small.text
-        _until(lambda: _job(url, small.json()["id"])["status"] == "done", "the next build done")
+        wait_until(lambda: _job(url, small.json()["id"])["status"] == "done", "the next build done")
         _stop_and_check_tree(server)
         assert "died under its task" in server.log()
 
@@ -192,7 +181,7 @@ def test_two_uvicorn_workers_share_jobs_across_crashes_and_restarts(tmp_path: Pa
         posted = httpx.post(f"{url}/v1/plans", json={**LIVE_PLAN, "async": True}, timeout=60)
         assert posted.status_code == 202, posted.text
         plan_job = posted.json()["id"]
-        done = _until(lambda: (j := _job(url, plan_job))["status"] == "done" and j, "plan done")
+        done = wait_until(lambda: (j := _job(url, plan_job))["status"] == "done" and j, "plan done")
 
         # kill -9 of the uvicorn worker serving a long jump: its compute process dies with it
         # (long before the jump would have ended), and uvicorn starts another worker.
@@ -205,18 +194,18 @@ def test_two_uvicorn_workers_share_jobs_across_crashes_and_restarts(tmp_path: Pa
                     return worker, pid
             return None
 
-        worker, process = _until(jump_process, "the jump's compute process")
-        _until(lambda: psutil.Process(process).cpu_times().user > 0.5, "the jump computes")
+        worker, process = wait_until(jump_process, "the jump's compute process")
+        wait_until(lambda: psutil.Process(process).cpu_times().user > 0.5, "the jump computes")
         os.kill(worker, signal.SIGKILL)
-        _until(lambda: _gone([worker, process]), "the jump's process gone with its worker", 10)
+        wait_until(lambda: _gone([worker, process]), "the jump's process gone with its worker", 10)
         with contextlib.suppress(httpx.HTTPError):  # or the connection closed under it
             assert jump.result().status_code >= 500  # an error, not a hang
-        _until(lambda: len(server.uvicorn_workers()) == 2, "a replacement uvicorn worker")
+        wait_until(lambda: len(server.uvicorn_workers()) == 2, "a replacement uvicorn worker")
 
         build = httpx.post(f"{url}/v1/roadmaps", json=BIG_ROADMAP, timeout=60)
         assert build.status_code == 202, build.text
         roadmap = build.json()["id"]
-        _until(lambda: _job(url, roadmap)["status"] == "running", "the roadmap builds")
+        wait_until(lambda: _job(url, roadmap)["status"] == "running", "the roadmap builds")
 
         workers = server.uvicorn_workers()
         assert len(workers) == 2
@@ -232,9 +221,9 @@ def test_two_uvicorn_workers_share_jobs_across_crashes_and_restarts(tmp_path: Pa
         owner = _owner_pid(home, roadmap)
         assert compute[owner], compute
         os.kill(owner, signal.SIGKILL)
-        _until(lambda: _gone([owner, *compute[owner]]), "the worker and its processes gone")
-        _until(lambda: len(server.uvicorn_workers()) == 2, "a replacement uvicorn worker")
-        _until(lambda: _job(url, roadmap)["status"] == "interrupted", "the build interrupted")
+        wait_until(lambda: _gone([owner, *compute[owner]]), "the worker and its processes gone")
+        wait_until(lambda: len(server.uvicorn_workers()) == 2, "a replacement uvicorn worker")
+        wait_until(lambda: _job(url, roadmap)["status"] == "interrupted", "the build interrupted")
         assert _job(url, plan_job)["result"] == done["result"]
         step = httpx.post(f"{url}/v1/twister/step", json=LIVE_STEP, timeout=WAIT_S)
         assert step.status_code == 200, step.text
@@ -243,7 +232,7 @@ def test_two_uvicorn_workers_share_jobs_across_crashes_and_restarts(tmp_path: Pa
         again = httpx.post(f"{url}/v1/roadmaps", json={**BIG_ROADMAP, "seed": 5}, timeout=60)
         assert again.status_code == 202, again.text
         second = again.json()["id"]
-        _until(lambda: _job(url, second)["status"] == "running", "the second build runs")
+        wait_until(lambda: _job(url, second)["status"] == "running", "the second build runs")
         _stop_and_check_tree(server)
 
     with server_process(home, workers=2) as restarted:  # the same home: the jobs are there
@@ -264,7 +253,7 @@ def test_two_uvicorn_workers_share_jobs_across_crashes_and_restarts(tmp_path: Pa
 def test_sigterm_during_a_request_stops_the_tree(tmp_path: Path) -> None:
     with server_process(tmp_path / "home", grace_s=2) as server:
         running = Call("POST", f"{server.url}/v1/jumps", LONG_JUMP)
-        _until(lambda: _lane(server.url, "gecko_lane_running") == 1, "the jump runs")
+        wait_until(lambda: _lane(server.url, "gecko_lane_running") == 1, "the jump runs")
         _stop_and_check_tree(server)
         # The client is not left hanging: an error answer or a closed connection.
         with contextlib.suppress(httpx.HTTPError):  # or a closed connection
