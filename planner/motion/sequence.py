@@ -204,8 +204,8 @@ def dynamic_durations(
 ) -> list[float]:
     """Per state, how long its phase lasts when the COM moves dynamically (s): a swing
     ``DYNAMIC_MIN_SWING_S`` or its distance at ``DYNAMIC_SWING_SPEED``, whichever is longer,
-    a shift ``DYNAMIC_SHIFT_S``, the first and last phase at least ``DYNAMIC_END_S``; all
-    divided by ``speed``."""
+    a shift ``DYNAMIC_SHIFT_S``, all divided by ``speed``; the first and last phase at least
+    ``DYNAMIC_END_S`` whatever the speed."""
     out = []
     for k, state in enumerate(states):
         limb = _swinging_limb(states, k)
@@ -216,9 +216,10 @@ def dynamic_durations(
             start = _last_placement(character, states, k, limb, state.q)
             reach = float(np.linalg.norm(np.asarray(target.placement)[:3, 3] - start[:3, 3]))
             duration = max(tuning.DYNAMIC_MIN_SWING_S, reach / tuning.DYNAMIC_SWING_SPEED)
-        if k in (0, len(states) - 1):
+        duration /= speed
+        if k in (0, len(states) - 1):  # starting from rest and stopping take their time
             duration = max(duration, tuning.DYNAMIC_END_S)
-        out.append(duration / speed)
+        out.append(duration)
     return out
 
 
@@ -228,19 +229,19 @@ def dynamic_com(
     states: Sequence[ContactState],
     reference: trajectory.ComTrajectory,
     speed: float = 1.0,
+    slowdowns: Sequence[float] = tuning.DYNAMIC_SLOWDOWNS,
 ) -> tuple[trajectory.DynamicCom | None, float]:
     """A COM through ``states`` whose wrench lies in each phase's contact cone (Eq. 1) at
     the collocation times of ``trajectory.dynamic_com``, near 2PAC's ``reference`` curve,
-    each phase lasting :func:`dynamic_durations` times the first of
-    ``tuning.DYNAMIC_SLOWDOWNS`` that succeeds. Returns (the curve or None, the slow-down
-    used or the last tried)."""
+    each phase lasting :func:`dynamic_durations` times the first of ``slowdowns`` that
+    succeeds. Returns (the curve or None, the slow-down used or the last tried)."""
     phases_tr = [contact_phase(character, s) for s in states]
     kinematics = [phase_kinematics(data, s) for s in states]
     durations = np.asarray(dynamic_durations(character, states, speed))
     start = com_position(character.model, states[0].q)
     end = com_position(character.model, states[-1].q)
-    slowdown = tuning.DYNAMIC_SLOWDOWNS[0]
-    for slowdown in tuning.DYNAMIC_SLOWDOWNS:
+    slowdown = 0.0
+    for slowdown in slowdowns:
         found = trajectory.dynamic_com(
             phases_tr,
             list(durations * slowdown),
@@ -293,6 +294,22 @@ def timed_com(
     return com_trajectory, attractor_report
 
 
+def _unplayable(built: BuiltMotion) -> str | None:
+    """Why a motion cannot be played as is (its builder's shortfall, or the root moving
+    faster than ``tuning.MAX_ROOT_SPEED`` between two keyframes), None when it can."""
+    why = built.report.shortfall()
+    if why is not None:
+        return why
+    roots = np.array([key.q[:3] for key in built.keyframes]).reshape(-1, 3)
+    times = np.array([key.t for key in built.keyframes])
+    if times.size < 2:
+        return None
+    speeds = np.linalg.norm(np.diff(roots, axis=0), axis=1) / np.maximum(np.diff(times), 1e-9)
+    if float(speeds.max()) > tuning.MAX_ROOT_SPEED:
+        return f"the root moves at {float(speeds.max()):.1f} m/s between two keyframes"
+    return None
+
+
 def _com_method(methods: Sequence[str]) -> str:
     """The plan's COM method from its phases': "2pac+dynamic" (2PAC's transition points
     and curve refined under Eq. 1), "2pac", or "2pac+rest_to_rest" when a window fell back."""
@@ -334,11 +351,6 @@ def sequence_motion(
     com_trajectory, attractor_report = timed_com(
         character, data, states, timing, swing_durations(character, states, speed)
     )
-    dynamic, slowdown = (
-        (None, 0.0)
-        if len(states) < 2
-        else dynamic_com(character, data, states, com_trajectory, speed)
-    )
 
     def build(curve: trajectory.PiecewiseBezier, times: FloatArray) -> BuiltMotion:
         spec_phases = []
@@ -358,16 +370,27 @@ def sequence_motion(
         spec = MotionSpec(np.asarray(states[0].q), tuple(spec_phases), curve, rate)
         return build_motion(character, scene_bvh, spec, obstacles=obstacles, until=until)
 
-    built = None
-    dynamic_shortfall = None
-    if dynamic is not None:
-        curve, times = dynamic.curve, np.asarray(dynamic.phase_times, dtype=np.float64)
-        built = build(curve, times)
-        methods = ("2pac+dynamic",) * len(states)
-        if not built.report.complete and not built.report.cut_short:
-            # the body could not follow the brisk curve cleanly: 2PAC's slower one instead
-            dynamic_shortfall = built.report.shortfall()
-            built = None
+    built: BuiltMotion | None = None
+    slowdown: float | None = None
+    dynamic_refused: str | None = None
+    slowdowns = list(tuning.DYNAMIC_SLOWDOWNS) if len(states) >= 2 else []
+    for _ in range(tuning.DYNAMIC_MAX_BUILDS):
+        if not slowdowns:
+            break
+        dynamic, used = dynamic_com(character, data, states, com_trajectory, speed, slowdowns)
+        if dynamic is None:
+            dynamic_refused = f"no curve passes Eq. 1 up to {used:g} times the brisk durations"
+            break
+        candidate = build(dynamic.curve, np.asarray(dynamic.phase_times, dtype=np.float64))
+        unplayable = _unplayable(candidate)
+        if unplayable is None or candidate.report.cut_short:
+            built, slowdown = candidate, used
+            curve, times = dynamic.curve, np.asarray(dynamic.phase_times, dtype=np.float64)
+            methods = ("2pac+dynamic",) * len(states)
+            break
+        # the body could not follow this curve cleanly: a slower one, then 2PAC's
+        dynamic_refused = f"at {used:g} times the brisk durations: {unplayable}"
+        slowdowns = [s for s in slowdowns if s > used]
     if built is None:
         curve = com_trajectory.curve
         times = np.asarray(com_trajectory.phase_times, dtype=np.float64)
@@ -377,10 +400,8 @@ def sequence_motion(
     report: dict[str, object] = {
         **built.report.as_dict(),
         "com_method": _com_method(methods),
-        "dynamic_slowdown": slowdown if methods[0] == "2pac+dynamic" else None,
-        "dynamic_refused": dynamic_shortfall
-        if dynamic is not None
-        else (None if len(states) < 2 else "no curve passes Eq. 1 at the brisk durations"),
+        "dynamic_slowdown": slowdown,
+        "dynamic_refused": None if slowdown is not None else dynamic_refused,
         "quasi_static_feasible": bool(com_trajectory.quasi_static_feasible),
         "transition_slack": [float(t.slack) for t in com_trajectory.transitions],
         "phase_methods": list(methods),

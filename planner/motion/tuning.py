@@ -197,8 +197,17 @@ to rest."""
 
 DYNAMIC_SLOWDOWNS = (1.0, 1.5, 2.25)
 """Factors on the durations above, tried in turn until the dynamic COM QP finds a curve
-that passes Eq. 1 at every collocation time; beyond the last, the plan keeps 2PAC's
-quasi-static curve (``com_method`` says which)."""
+that passes Eq. 1 at every collocation time and the body follows it cleanly; beyond the
+last, the plan keeps 2PAC's quasi-static curve (``com_method`` says which)."""
+
+DYNAMIC_MAX_BUILDS = 2
+"""Whole-body builds tried on dynamic curves before a plan keeps 2PAC's curve: each costs
+about as much as the plan's keyframes."""
+
+MAX_ROOT_SPEED = 1.4
+"""m/s, the fastest the root may move between two keyframes of a plan's dynamic motion (the
+audit allows 5 cm per 30 Hz keyframe, 1.5 m/s): a body that lags its COM and then catches
+up is not played."""
 
 # --- jumps (takeoff push, flight, landing) ----------------------------------------------------
 JUMP_ACCELERATION = 2.0 * 9.81

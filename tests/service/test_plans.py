@@ -153,17 +153,20 @@ def test_service_bounds_are_the_planner_bounds() -> None:
 
 
 async def test_speed_cost_and_attractors_shape_the_com(client: httpx.AsyncClient) -> None:
-    """The paper's user controls over HTTP: a faster plan is shorter; "low" lowers the
+    """The paper's user controls over HTTP: a slower plan is longer; "low" lowers the
     transition points; an attractor in balance is honoured where asked, one in the air is
     refused with its reason, one past the plan's changes too."""
     short = {**WALK, "goal": {"stand_at": [0.6, 0.0, 0.0]}}
     plain = (await client.post("/v1/plans", json=short, timeout=120)).json()
     assert plain["report"]["com_method"].startswith("2pac")
     assert len(plain["report"]["phase_methods"]) == len(plain["phases"])
-    fast = {**short, "options": {"speed": 2.0}}
-    quick = (await client.post("/v1/plans", json=fast, timeout=120)).json()
-    assert quick["states"] == plain["states"]  # the same contacts, sooner
-    assert quick["keyframes"][-1]["t"] < 0.8 * plain["keyframes"][-1]["t"]
+    # a slower plan is longer with the same contacts (at speed 1 the dynamic COM is already
+    # brisk: asking for more keeps the fastest curve the body follows cleanly, see README)
+    slow = {**short, "options": {"speed": 0.5}}
+    slower = (await client.post("/v1/plans", json=slow, timeout=120)).json()
+    assert slower["states"] == plain["states"]
+    assert slower["keyframes"][-1]["t"] > 1.25 * plain["keyframes"][-1]["t"]
+    assert slower["report"]["speed"] == 0.5
 
     def change_times(body: dict[str, Any]) -> np.ndarray:
         return np.array([p["t1"] for p in body["phases"][:-1]])
