@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from planner.character import Character
 from planner.motion import tuning
-from planner.motion.clearance import SceneDistances
+from planner.motion.clearance import PairSpheres, SceneDistances
 from planner.motion.tracker import effector_geometries
 
 if TYPE_CHECKING:
@@ -67,6 +67,7 @@ class KeyframeChecker:
         for request in self.geometry_data.distanceRequests:
             request.enable_signed_distance = True
         self.distances = SceneDistances(scene_bvh, obstacles)
+        self.pairs = PairSpheres(self.geometry)
         self.effectors = effector_geometries(character)
 
     def check(self, q: FloatArray, stance: Sequence[LimbContact]) -> KeyframeCheck:
@@ -86,11 +87,12 @@ class KeyframeChecker:
         for i, obj in enumerate(self.geometry.geometryObjects):
             if i in skipped:
                 continue
-            d = self.distances.nearest(obj.geometry, self.geometry_data.oMg[i])
-            if -d > deepest:
-                deepest, shape = -d, str(obj.name)
-        pin.computeDistances(self.geometry, self.geometry_data)
+            depth = self.distances.penetration(obj.geometry, self.geometry_data.oMg[i])
+            if depth > deepest:
+                deepest, shape = depth, str(obj.name)
         self_depth = 0.0
-        for result in self.geometry_data.distanceResults:
+        for k in self.pairs.overlapping(self.geometry_data).tolist():
+            pin.computeDistance(self.geometry, self.geometry_data, k)
+            result = self.geometry_data.distanceResults[k]
             self_depth = max(self_depth, -float(result.min_distance))
         return KeyframeCheck(deepest, shape, self_depth, hold)

@@ -61,13 +61,25 @@ def _damper_row(
 
 class SceneDistances:
     """Signed distances (m, negative inside) of body shapes to the scene (a triangle BVH)
-    and static obstacles ((coal geometry, coal.Transform3s) pairs). Not thread-safe."""
+    and static obstacles ((coal geometry, coal.Transform3s) pairs). Not thread-safe.
+
+    An exact distance on a BVH costs tens of microseconds (the traversal looks for the
+    nearest triangle), a collision test with a security margin a few (it stops at the first
+    bounding volume within the margin, or prunes the tree): callers that only need the
+    distances below a bound (the dampers within ``INFLUENCE_DISTANCE``, the checker's
+    penetrations) ask :meth:`within` and :meth:`penetration`, which run the collision test
+    first and compute the distance only when it says the shape is that close."""
 
     def __init__(self, scene_bvh: Any, obstacles: Sequence[tuple[Any, Any]] = ()) -> None:
         self.targets: list[tuple[Any, Any]] = [(scene_bvh, coal.Transform3s()), *obstacles]
         self.request = coal.DistanceRequest()
         self.request.enable_signed_distance = True
         self.result = coal.DistanceResult()
+        self._near = coal.CollisionRequest()
+        self._near.security_margin = tuning.INFLUENCE_DISTANCE
+        self._touch = coal.CollisionRequest()
+        self._touch.security_margin = 0.0
+        self._collision = coal.CollisionResult()
 
     def each(self, geometry: Any, placement: Any) -> Iterator[tuple[float, Any]]:
         """Per target, the distance of ``geometry`` at ``placement`` (pin.SE3) and coal's
@@ -79,9 +91,37 @@ class SceneDistances:
             d = coal.distance(target, target_tf, geometry, transform, self.request, self.result)
             yield float(d), self.result
 
+    def _close(self, request: Any, target: Any, target_tf: Any, geometry: Any, tf: Any) -> bool:
+        self._collision.clear()
+        return bool(coal.collide(target, target_tf, geometry, tf, request, self._collision))
+
+    def within(self, geometry: Any, placement: Any) -> Iterator[tuple[float, Any]]:
+        """As :meth:`each`, for the targets closer than ``INFLUENCE_DISTANCE`` only (the
+        others may be skipped without computing their distance)."""
+        transform = coal.Transform3s(placement.rotation, placement.translation)
+        for target, target_tf in self.targets:
+            if not self._close(self._near, target, target_tf, geometry, transform):
+                continue
+            self.result.clear()
+            d = coal.distance(target, target_tf, geometry, transform, self.request, self.result)
+            yield float(d), self.result
+
     def nearest(self, geometry: Any, placement: Any) -> float:
         """The smallest signed distance of ``geometry`` at ``placement`` to any target."""
         return min(d for d, _ in self.each(geometry, placement))
+
+    def penetration(self, geometry: Any, placement: Any) -> float:
+        """How deep (m, >= 0) ``geometry`` at ``placement`` is inside the deepest target: 0
+        when it touches none (then no distance is computed)."""
+        transform = coal.Transform3s(placement.rotation, placement.translation)
+        deepest = 0.0
+        for target, target_tf in self.targets:
+            if not self._close(self._touch, target, target_tf, geometry, transform):
+                continue
+            self.result.clear()
+            d = coal.distance(target, target_tf, geometry, transform, self.request, self.result)
+            deepest = max(deepest, -float(d))
+        return deepest
 
 
 class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type information
@@ -147,7 +187,7 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
             frame = data.oMi[joint]
             memory = [m for m in self.memory.get(i, []) if m[0] > oldest]
             self.memory[i] = memory
-            for d, result in self.distances.each(obj.geometry, self.geometry_data.oMg[i]):
+            for d, result in self.distances.within(obj.geometry, self.geometry_data.oMg[i]):
                 if d > tuning.INFLUENCE_DISTANCE:
                     continue
                 local = frame.actInv(np.array(result.getNearestPoint2()))
@@ -168,6 +208,39 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
         return np.vstack(rows), np.asarray(bounds, dtype=np.float64)
 
 
+class PairSpheres:
+    """The broad phase of the declared collision pairs of a pin.GeometryModel: each shape's
+    bounding sphere (its local AABB's centre and radius)."""
+
+    def __init__(self, geometry: Any) -> None:
+        pairs = [(int(p.first), int(p.second)) for p in geometry.collisionPairs]
+        self.pair_array = np.array(pairs, dtype=np.int64).reshape(-1, 2)
+        self.centres: list[FloatArray | None] = []
+        radii = []
+        for obj in geometry.geometryObjects:
+            obj.geometry.computeLocalAABB()
+            centre = np.array(obj.geometry.aabb_center, dtype=np.float64)
+            self.centres.append(None if not centre.any() else centre)
+            radii.append(float(obj.geometry.aabb_radius))
+        r = np.array(radii)
+        self.radii_sum = r[self.pair_array[:, 0]] + r[self.pair_array[:, 1]]
+
+    def overlapping(self, geometry_data: Any, margin: float = 0.0) -> NDArray[np.int64]:
+        """Indices of the pairs whose bounding spheres, at the placements of
+        ``geometry_data`` (updated), are less than ``margin`` (m) apart: the others are
+        farther apart than that."""
+        # a shape centred on its frame (most primitives) is at its placement's translation
+        centres = np.array(
+            [
+                placement.translation if c is None else placement.act(c)
+                for placement, c in zip(geometry_data.oMg, self.centres, strict=True)
+            ]
+        )
+        a_idx, b_idx = self.pair_array[:, 0], self.pair_array[:, 1]
+        gaps = np.linalg.norm(centres[a_idx] - centres[b_idx], axis=1) - self.radii_sum
+        return np.flatnonzero(gaps <= margin)
+
+
 class SelfClearance(Limit):  # type: ignore[misc]
     """Body shapes kept apart: the collision pairs declared in the character's geometry
     model (adjacent links and pairs touching in the reference posture are not declared)."""
@@ -179,17 +252,8 @@ class SelfClearance(Limit):  # type: ignore[misc]
         for request in self.geometry_data.distanceRequests:
             request.enable_signed_distance = True
         self.pairs = [(int(p.first), int(p.second)) for p in geometry.collisionPairs]
-        self.pair_array = np.array(self.pairs, dtype=np.int64).reshape(-1, 2)
+        self.spheres = PairSpheres(geometry)
         self.joints = [int(o.parentJoint) for o in geometry.geometryObjects]
-        # bounding sphere of each shape (centre in the shape's frame, radius)
-        self.centres = []
-        radii = []
-        for obj in geometry.geometryObjects:
-            obj.geometry.computeLocalAABB()
-            self.centres.append(np.array(obj.geometry.aabb_center, dtype=np.float64))
-            radii.append(float(obj.geometry.aabb_radius))
-        r = np.array(radii)
-        self.radii_sum = r[self.pair_array[:, 0]] + r[self.pair_array[:, 1]]
         self.rows = 0
 
     def compute_qp_inequalities(
@@ -199,15 +263,7 @@ class SelfClearance(Limit):  # type: ignore[misc]
         model, data = self.model, configuration.data
         pin.updateGeometryPlacements(model, data, self.geometry, self.geometry_data)
         # broad phase: bounding spheres farther apart than the influence distance are skipped
-        centres = np.array(
-            [
-                self.geometry_data.oMg[i].act(self.centres[i])
-                for i in range(len(self.geometry.geometryObjects))
-            ]
-        )
-        a_idx, b_idx = self.pair_array[:, 0], self.pair_array[:, 1]
-        gaps = np.linalg.norm(centres[a_idx] - centres[b_idx], axis=1) - self.radii_sum
-        near = np.flatnonzero(gaps <= tuning.INFLUENCE_DISTANCE)
+        near = self.spheres.overlapping(self.geometry_data, tuning.INFLUENCE_DISTANCE)
         rows: list[FloatArray] = []
         bounds: list[float] = []
         for k in near.tolist():
