@@ -95,5 +95,7 @@ class KeyframeChecker:
         self_depth = 0.0
         for k in self.broad.near(self.geometry_data, 0.0):
             pin.computeDistance(self.geometry, self.geometry_data, k)
-            self_depth = max(self_depth, -float(self.geometry_data.distanceResults[k].min_distance))
+            d = float(self.geometry_data.distanceResults[k].min_distance)
+            self.broad.remember(k, d)
+            self_depth = max(self_depth, -d)
         return KeyframeCheck(deepest, shape, self_depth, hold)

@@ -232,9 +232,15 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
 
 
 class PairBroadPhase:
-    """Broad phase of the collision pairs declared in a pin.GeometryModel: a bounding
-    capsule per shape (:func:`bounding_segment`); pairs whose capsules are farther apart
-    than a margin cannot be closer than it."""
+    """Broad phase of the collision pairs declared in a pin.GeometryModel.
+
+    Two filters, both exact. Each shape keeps an odometer, the sum over queries of how far
+    any of its points can have moved since the previous one (centre shift plus rotation
+    change times its bounding radius): a pair whose last known distance (:meth:`remember`,
+    or the bounding-capsule gap measured here) minus what both odometers ran since then is
+    above the margin is skipped outright. The others are tested on bounding capsules
+    (:func:`bounding_segment`); those farther apart than the margin remember their capsule
+    gap. One instance per sequence of queries (it remembers)."""
 
     def __init__(self, geometry: Any) -> None:
         pairs = [(int(p.first), int(p.second)) for p in geometry.collisionPairs]
@@ -249,22 +255,51 @@ class PairBroadPhase:
         self.ends_b = np.array(ends_b, dtype=np.float64).reshape(-1, 3)
         r = np.array(radii, dtype=np.float64)
         self.radii_sum = r[self.pair_array[:, 0]] + r[self.pair_array[:, 1]]
+        # per shape: bounding sphere (its capsule's middle in its frame, radius), odometer (m)
+        # and the placement of the last query
+        self.middles = (self.ends_a + self.ends_b) / 2.0
+        self.spheres = r + np.linalg.norm(self.ends_b - self.ends_a, axis=1) / 2.0
+        self.odometer = np.zeros(len(r))
+        self.last: tuple[FloatArray, FloatArray] | None = None
+        # per pair: distance known (-inf: none), both odometers when it was known
+        n = len(self.pair_array)
+        self.known = np.full(n, -np.inf)
+        self.known_odometers = np.zeros((n, 2))
 
     def near(self, geometry_data: Any, margin: float) -> list[int]:
-        """Indices of the pairs whose bounding capsules are at most ``margin`` m apart, at
-        the placements of ``geometry_data`` (updated by the caller)."""
+        """Indices of the pairs that may be at most ``margin`` m apart at the placements of
+        ``geometry_data`` (updated by the caller); the caller :meth:`remember` s the
+        distances it then computes."""
         if len(self.pair_array) == 0:
             return []
         rot = np.array([m.rotation for m in geometry_data.oMg]).reshape(-1, 3, 3)
         trans = np.array([m.translation for m in geometry_data.oMg]).reshape(-1, 3)
+        centres = np.einsum("gab,gb->ga", rot, self.middles) + trans
+        if self.last is not None:
+            last_rot, last_centres = self.last
+            turn = np.sqrt(np.sum((rot - last_rot) ** 2, axis=(1, 2)))
+            self.odometer += np.linalg.norm(centres - last_centres, axis=1) + turn * self.spheres
+        self.last = (rot, centres)
+        run = self.odometer[self.pair_array] - self.known_odometers
+        open_ = np.flatnonzero(self.known - run[:, 0] - run[:, 1] <= margin)
+        if len(open_) == 0:
+            return []
+        a, b = self.pair_array[open_, 0], self.pair_array[open_, 1]
         world_a = np.einsum("gab,gb->ga", rot, self.ends_a) + trans
         world_b = np.einsum("gab,gb->ga", rot, self.ends_b) + trans
-        a_idx, b_idx = self.pair_array[:, 0], self.pair_array[:, 1]
-        gaps = (
-            segment_distances(world_a[a_idx], world_b[a_idx], world_a[b_idx], world_b[b_idx])
-            - self.radii_sum
-        )
-        return [int(k) for k in np.flatnonzero(gaps <= margin)]
+        gaps = segment_distances(world_a[a], world_b[a], world_a[b], world_b[b])
+        gaps -= self.radii_sum[open_]
+        far = gaps > margin
+        done = open_[far]
+        self.known[done] = gaps[far]
+        self.known_odometers[done] = self.odometer[self.pair_array[done]]
+        return [int(k) for k in open_[~far]]
+
+    def remember(self, k: int, distance: float) -> None:
+        """Pair ``k`` is at least ``distance`` m apart at the placements of the last
+        :meth:`near` call."""
+        self.known[k] = distance
+        self.known_odometers[k] = self.odometer[self.pair_array[k]]
 
 
 class SelfClearance(Limit):  # type: ignore[misc]
@@ -297,6 +332,7 @@ class SelfClearance(Limit):  # type: ignore[misc]
             pin.computeDistance(self.geometry, self.geometry_data, k)
             result = self.geometry_data.distanceResults[k]
             d = float(result.min_distance)
+            self.broad.remember(k, d)
             if d > tuning.INFLUENCE_DISTANCE:
                 continue
             normal = np.array(result.normal)
