@@ -394,7 +394,7 @@ def build_motion(
             groups[-1].append(t)
         else:
             groups.append([t])
-    objects = list(character.geometry.geometryObjects)
+    objects = list(character.motion_geometry.geometryObjects)
     limb_shapes = {
         limb.name: frozenset(
             str(o.name) for o in objects if int(o.parentJoint) in set(limb.joint_ids.tolist())
