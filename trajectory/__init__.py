@@ -17,6 +17,7 @@ from trajectory.com import (
     weierstrass_curve,
 )
 from trajectory.contacts import Contact, ContactPhase, friction_rays, tangent_basis
+from trajectory.dynamic import DynamicCom, DynamicSettings, dynamic_com
 from trajectory.equilibrium import (
     EquilibriumMargin,
     equilibrium_halfspaces,
@@ -42,6 +43,8 @@ __all__ = [
     "ComTrajectory",
     "Contact",
     "ContactPhase",
+    "DynamicCom",
+    "DynamicSettings",
     "EffectorConstraint",
     "EquilibriumMargin",
     "Halfspaces",
@@ -53,6 +56,7 @@ __all__ = [
     "bernstein",
     "check_transition_point",
     "concatenate",
+    "dynamic_com",
     "equilibrium_halfspaces",
     "equilibrium_margin",
     "equilibrium_polygon",

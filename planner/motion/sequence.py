@@ -21,7 +21,7 @@ import trajectory
 from planner.character import Character
 from planner.kinematics import com_position, frame_placement
 from planner.motion import tuning
-from planner.motion.builder import MotionReport, build_motion
+from planner.motion.builder import BuiltMotion, MotionReport, build_motion
 from planner.motion.spec import MotionPhase, MotionSpec, Swing, natural_posture
 from planner.motion.types import ComSegment, Keyframe, Phase
 from planner.offline import OfflineData
@@ -199,6 +199,62 @@ def swing_durations(
     return out
 
 
+def dynamic_durations(
+    character: Character, states: Sequence[ContactState], speed: float = 1.0
+) -> list[float]:
+    """Per state, how long its phase lasts when the COM moves dynamically (s): a swing
+    ``DYNAMIC_MIN_SWING_S`` or its distance at ``DYNAMIC_SWING_SPEED``, whichever is longer,
+    a shift ``DYNAMIC_SHIFT_S``, the first and last phase at least ``DYNAMIC_END_S``; all
+    divided by ``speed``."""
+    out = []
+    for k, state in enumerate(states):
+        limb = _swinging_limb(states, k)
+        duration = tuning.DYNAMIC_SHIFT_S
+        if limb is not None:
+            target = states[k + 1].contact(limb)
+            assert target is not None
+            start = _last_placement(character, states, k, limb, state.q)
+            reach = float(np.linalg.norm(np.asarray(target.placement)[:3, 3] - start[:3, 3]))
+            duration = max(tuning.DYNAMIC_MIN_SWING_S, reach / tuning.DYNAMIC_SWING_SPEED)
+        if k in (0, len(states) - 1):
+            duration = max(duration, tuning.DYNAMIC_END_S)
+        out.append(duration / speed)
+    return out
+
+
+def dynamic_com(
+    character: Character,
+    data: OfflineData,
+    states: Sequence[ContactState],
+    reference: trajectory.ComTrajectory,
+    speed: float = 1.0,
+) -> tuple[trajectory.DynamicCom | None, float]:
+    """A COM through ``states`` whose wrench lies in each phase's contact cone (Eq. 1) at
+    the collocation times of ``trajectory.dynamic_com``, near 2PAC's ``reference`` curve,
+    each phase lasting :func:`dynamic_durations` times the first of
+    ``tuning.DYNAMIC_SLOWDOWNS`` that succeeds. Returns (the curve or None, the slow-down
+    used or the last tried)."""
+    phases_tr = [contact_phase(character, s) for s in states]
+    kinematics = [phase_kinematics(data, s) for s in states]
+    durations = np.asarray(dynamic_durations(character, states, speed))
+    start = com_position(character.model, states[0].q)
+    end = com_position(character.model, states[-1].q)
+    slowdown = tuning.DYNAMIC_SLOWDOWNS[0]
+    for slowdown in tuning.DYNAMIC_SLOWDOWNS:
+        found = trajectory.dynamic_com(
+            phases_tr,
+            list(durations * slowdown),
+            start,
+            end,
+            kinematics=kinematics,
+            reference=reference.curve,
+            reference_times=list(reference.phase_times),
+        )
+        if found is not None and found.valid:
+            return found, slowdown
+    return None, slowdown
+
+
 def timed_com(
     character: Character,
     data: OfflineData,
@@ -237,6 +293,14 @@ def timed_com(
     return com_trajectory, attractor_report
 
 
+def _com_method(methods: Sequence[str]) -> str:
+    """The plan's COM method from its phases': "2pac+dynamic" (2PAC's transition points
+    and curve refined under Eq. 1), "2pac", or "2pac+rest_to_rest" when a window fell back."""
+    if all(m == "2pac+dynamic" for m in methods):
+        return "2pac+dynamic"
+    return "2pac" if all(m == "2pac" for m in methods) else "2pac+rest_to_rest"
+
+
 def sequence_motion(
     character: Character,
     data: OfflineData,
@@ -270,30 +334,53 @@ def sequence_motion(
     com_trajectory, attractor_report = timed_com(
         character, data, states, timing, swing_durations(character, states, speed)
     )
-    times = np.asarray(com_trajectory.phase_times, dtype=np.float64)
-    curve: trajectory.PiecewiseBezier = com_trajectory.curve
-    methods = com_trajectory.phase_methods
-    reports = trajectory.validate_dynamics(curve, phases_tr, times)
+    dynamic, slowdown = (
+        (None, 0.0)
+        if len(states) < 2
+        else dynamic_com(character, data, states, com_trajectory, speed)
+    )
 
-    spec_phases = []
-    for k, state in enumerate(states):
-        swing = None
-        swing_limb = _swinging_limb(states, k)
-        if swing_limb is not None:
-            target = states[k + 1].contact(swing_limb)
-            assert target is not None
-            start = _last_placement(character, states, k, swing_limb, states[k].q)
-            swing = Swing(swing_limb, start, np.asarray(target.placement), lift)
-        aim = states[min(k + 1, len(states) - 1)]
-        posture = natural_posture(character, np.asarray(aim.q), aim.limbs)
-        spec_phases.append(
-            MotionPhase(float(times[k]), float(times[k + 1]), state.contacts, posture, swing)
-        )
-    spec = MotionSpec(np.asarray(states[0].q), tuple(spec_phases), curve, rate)
-    built = build_motion(character, scene_bvh, spec, obstacles=obstacles, until=until)
+    def build(curve: trajectory.PiecewiseBezier, times: FloatArray) -> BuiltMotion:
+        spec_phases = []
+        for k, state in enumerate(states):
+            swing = None
+            swing_limb = _swinging_limb(states, k)
+            if swing_limb is not None:
+                target = states[k + 1].contact(swing_limb)
+                assert target is not None
+                start = _last_placement(character, states, k, swing_limb, states[k].q)
+                swing = Swing(swing_limb, start, np.asarray(target.placement), lift)
+            aim = states[min(k + 1, len(states) - 1)]
+            posture = natural_posture(character, np.asarray(aim.q), aim.limbs)
+            spec_phases.append(
+                MotionPhase(float(times[k]), float(times[k + 1]), state.contacts, posture, swing)
+            )
+        spec = MotionSpec(np.asarray(states[0].q), tuple(spec_phases), curve, rate)
+        return build_motion(character, scene_bvh, spec, obstacles=obstacles, until=until)
+
+    built = None
+    dynamic_shortfall = None
+    if dynamic is not None:
+        curve, times = dynamic.curve, np.asarray(dynamic.phase_times, dtype=np.float64)
+        built = build(curve, times)
+        methods = ("2pac+dynamic",) * len(states)
+        if not built.report.complete and not built.report.cut_short:
+            # the body could not follow the brisk curve cleanly: 2PAC's slower one instead
+            dynamic_shortfall = built.report.shortfall()
+            built = None
+    if built is None:
+        curve = com_trajectory.curve
+        times = np.asarray(com_trajectory.phase_times, dtype=np.float64)
+        methods = com_trajectory.phase_methods
+        built = build(curve, times)
+    reports = trajectory.validate_dynamics(curve, phases_tr, times)
     report: dict[str, object] = {
         **built.report.as_dict(),
-        "com_method": "2pac" if all(m == "2pac" for m in methods) else "2pac+rest_to_rest",
+        "com_method": _com_method(methods),
+        "dynamic_slowdown": slowdown if methods[0] == "2pac+dynamic" else None,
+        "dynamic_refused": dynamic_shortfall
+        if dynamic is not None
+        else (None if len(states) < 2 else "no curve passes Eq. 1 at the brisk durations"),
         "quasi_static_feasible": bool(com_trajectory.quasi_static_feasible),
         "transition_slack": [float(t.slack) for t in com_trajectory.transitions],
         "phase_methods": list(methods),

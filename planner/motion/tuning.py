@@ -179,6 +179,27 @@ whole-body tracker follows it without the root jumping between keyframes."""
 FALLBACK_MAX_ACCELERATION = 0.6
 """m/s^2, peak COM acceleration of the rest-to-rest segments of a window that fell back."""
 
+# --- the dynamic COM of a plan (trajectory.dynamic: Eq. 1 at collocation times) -------------
+DYNAMIC_MIN_SWING_S = 0.3
+"""s, shortest swing when the COM moves dynamically (a brisk human step swings in about
+0.35 s); ``options.speed`` divides it."""
+
+DYNAMIC_SWING_SPEED = 1.2
+"""m/s, mean effector speed from lift-off to touch-down of a dynamic plan: a long reach
+gets more than ``DYNAMIC_MIN_SWING_S``."""
+
+DYNAMIC_SHIFT_S = 0.1
+"""s, a phase without a swing (double support of a walk) in a dynamic plan."""
+
+DYNAMIC_END_S = 0.35
+"""s, shortest first and last phase of a dynamic plan: the body starts from rest and comes
+to rest."""
+
+DYNAMIC_SLOWDOWNS = (1.0, 1.5, 2.25)
+"""Factors on the durations above, tried in turn until the dynamic COM QP finds a curve
+that passes Eq. 1 at every collocation time; beyond the last, the plan keeps 2PAC's
+quasi-static curve (``com_method`` says which)."""
+
 # --- jumps (takeoff push, flight, landing) ----------------------------------------------------
 JUMP_ACCELERATION = 2.0 * 9.81
 """m/s^2: the takeoff push accelerates the COM from rest to the takeoff velocity, the landing

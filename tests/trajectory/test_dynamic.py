@@ -1,0 +1,137 @@
+"""Dynamic COM curves (trajectory.dynamic): Eq. 1 along the curve, C2 joins, rest ends,
+kinematic constraints, and the same answer for the same input."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import trajectory
+from tests.trajectory.helpers import figure2_phases, walking_phases
+from trajectory import Halfspaces
+
+HEIGHT = 0.9
+
+
+Walk = tuple[list[trajectory.ContactPhase], list[float], np.ndarray, np.ndarray]
+
+
+def _walk(n_phases: int, swing: float, shift: float) -> Walk:
+    phases = walking_phases(n_phases)
+    durations = [swing if i % 2 else shift for i in range(n_phases)]
+    durations[0] = durations[-1] = 0.4
+    first = np.vstack([c.points for c in phases[0].contacts]).mean(axis=0)
+    last = np.vstack([c.points for c in phases[-1].contacts]).mean(axis=0)
+    up = np.array([0.0, 0.0, HEIGHT])
+    return phases, durations, first + up, last + up
+
+
+def _exact_validity(
+    result: trajectory.DynamicCom, phases: list[trajectory.ContactPhase], per_phase: int
+) -> float:
+    reports = trajectory.validate_dynamics(result.curve, phases, result.phase_times, per_phase)
+    return float(np.mean([r.fraction_valid for r in reports]))
+
+
+@settings(max_examples=12, deadline=None)
+@given(n=st.sampled_from([3, 5, 7]), swing=st.floats(0.3, 0.8), shift=st.floats(0.1, 0.4))
+def test_a_walk_at_a_brisk_pace_passes_eq1_along_the_whole_curve(
+    n: int, swing: float, shift: float
+) -> None:
+    phases, durations, start, end = _walk(n, swing, shift)
+    result = trajectory.dynamic_com(phases, durations, start, end)
+    assert result is not None and result.valid
+    # far denser than the collocation times: the margin covers the gaps between them
+    assert _exact_validity(result, phases, 40) >= 0.97
+    curve = result.curve
+    np.testing.assert_allclose(curve(curve.t0), start, atol=1e-6)
+    np.testing.assert_allclose(curve(curve.t1), end, atol=1e-6)
+    for order in (1, 2):
+        ends = curve.derivative(order)(np.array([curve.t0, curve.t1]))
+        np.testing.assert_allclose(ends, 0.0, atol=1e-5)
+    # C2 at every phase boundary: both sides of a join agree
+    for k in range(1, len(curve.segments)):
+        a, b = curve.segments[k - 1], curve.segments[k]
+        for order in (0, 1, 2):
+            left = a.derivative(order)(a.t1) if order else a(a.t1)
+            right = b.derivative(order)(b.t0) if order else b(b.t0)
+            np.testing.assert_allclose(left, right, atol=1e-5 * (1 + np.abs(left).max()))
+    np.testing.assert_allclose(result.phase_times, np.concatenate([[0], np.cumsum(durations)]))
+
+
+def test_the_curve_sways_less_than_a_quasi_static_one_at_the_same_pace() -> None:
+    """The point of a dynamic COM: the wrench, not the COM, moves over the stance foot."""
+    phases, durations, start, end = _walk(7, 0.35, 0.1)
+    result = trajectory.dynamic_com(phases, durations, start, end)
+    assert result is not None and result.valid
+    lateral = result.curve(np.linspace(0, result.curve.t1, 200))[:, 1]
+    # the stance feet are 0.1 m either side: a quasi-static COM would have to reach them
+    assert np.ptp(lateral) < 0.15
+
+
+def test_an_impossible_pace_is_refused_not_returned_valid() -> None:
+    """A 1.5 m walk in 0.4 s cannot keep the wrench in the cones: None or not valid."""
+    phases, _durations, start, end = _walk(7, 0.05, 0.05)
+    result = trajectory.dynamic_com(phases, [0.05] * 7, start, end + np.array([1.0, 0.0, 0.0]))
+    assert result is None or not result.valid
+
+
+def test_kinematic_constraints_hold_along_the_curve() -> None:
+    phases, durations, start, end = _walk(5, 0.4, 0.15)
+    ceiling = HEIGHT + 0.005
+    kin = Halfspaces(np.array([[0.0, 0.0, 1.0]]), np.array([ceiling]))
+    result = trajectory.dynamic_com(phases, durations, start, end, kinematics=[kin] * 5)
+    assert result is not None and result.valid
+    z = result.curve(np.linspace(0, result.curve.t1, 300))[:, 2]
+    assert z.max() <= ceiling + trajectory.dynamic.KINEMATIC_SLACK + 1e-9
+
+
+def test_a_hand_on_a_wall_phase_set_solves_and_replays_identically() -> None:
+    phases = figure2_phases()
+    start = np.array([0.05, -0.05, 0.9])
+    end = np.array([0.15, -0.05, 0.9])
+    reference = trajectory.plan_com_trajectory(phases, start, end)
+    first, second = (
+        trajectory.dynamic_com(
+            phases,
+            [0.4, 0.5, 0.4],
+            start,
+            end,
+            reference=reference.curve,
+            reference_times=list(reference.phase_times),
+        )
+        for _ in range(2)
+    )
+    assert first is not None and first.valid and second is not None
+    for a, b in zip(first.curve.segments, second.curve.segments, strict=True):
+        np.testing.assert_array_equal(a.control_points, b.control_points)
+
+
+@pytest.mark.parametrize(
+    ("field", "kwargs"),
+    [
+        ("durations", {"durations": [0.3, -0.1, 0.3]}),
+        ("durations", {"durations": [0.3, 0.3]}),
+        ("kinematics", {"kinematics": [None]}),
+        ("reference_times", {"reference": "curve", "reference_times": [0.0, 1.0]}),
+    ],
+)
+def test_bad_input_names_the_field(field: str, kwargs: dict[str, Any]) -> None:
+    phases = figure2_phases()
+    start, end = np.array([0.05, -0.05, 0.9]), np.array([0.15, -0.05, 0.9])
+    args = {"durations": [0.4, 0.5, 0.4], **kwargs}
+    if args.get("reference") == "curve":
+        args["reference"] = trajectory.plan_com_trajectory(phases, start, end).curve
+    with pytest.raises(ValueError, match=field):
+        trajectory.dynamic_com(phases, args.pop("durations"), start, end, **args)
+
+
+def test_settings_are_checked() -> None:
+    with pytest.raises(ValueError, match="degree"):
+        trajectory.DynamicSettings(degree=4)
+    with pytest.raises(ValueError, match="samples"):
+        trajectory.DynamicSettings(samples=1)

@@ -1,0 +1,428 @@
+"""Dynamic COM curves: a C2 piecewise Bezier COM over given phase durations whose
+gravito-inertial wrench lies in each phase's contact wrench cone (2PAC Eq. 1) at
+collocation times, so the COM may move as fast as the contacts allow instead of staying
+in static equilibrium.
+
+Eq. 1 with zero angular momentum rate: G_j' beta = w(c, a) = [m (a - g), c x m (a - g)],
+beta >= 0 (generator weights). The force rows are linear in the control points; the torque
+c x m (a - g) is bilinear, so it is linearised about the previous iterate (c_, a_):
+c x a ~= c_ x a + c x a_ - c_ x a_, and the convex QP is solved again about its answer
+(sequential convex programming). Weights carry a margin (a fraction of the body weight per
+generator) that absorbs the linearisation error; the answer is accepted only when the exact
+Eq. 1 holds at every collocation time (checked with the same robustness LP as
+``validate_dynamics``).
+
+Units: metres, seconds, world frame z up; weights are in body weights (m g) for
+conditioning. The QP is sparse and solved by Clarabel (interior point, deterministic).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import clarabel
+import numpy as np
+from numpy.typing import NDArray
+from scipy import sparse
+
+from trajectory._types import GRAVITY, FloatArray, as_float_array
+from trajectory.bezier import BezierCurve, PiecewiseBezier, bernstein
+from trajectory.contacts import ContactPhase
+from trajectory.equilibrium import equilibrium_margin
+from trajectory.polytope import Halfspaces
+
+
+@dataclass(frozen=True, slots=True)
+class DynamicSettings:
+    """Tuning of the dynamic COM QP.
+
+    degree : Bezier degree of each phase's segment (>= 5: C2 joins and rest ends leave
+        free points). samples : collocation times per phase, both ends included.
+    iterations : linearisation rounds at most. margin : smallest generator weight, in body
+        weights, while solving (robustness to the linearisation and between samples).
+    acceleration_weight : cost of the squared acceleration (s^4 per phase second).
+    tracking_weight : cost of the squared distance to the reference curve (1/m^2).
+    force_weight : cost of the squared generator weights (spreads the force over contacts).
+    """
+
+    degree: int = 7
+    samples: int = 12
+    iterations: int = 4
+    margin: float = 1e-3
+    acceleration_weight: float = 1.0
+    tracking_weight: float = 10.0
+    force_weight: float = 1e-2
+
+    def __post_init__(self) -> None:
+        if self.degree < 5:
+            raise ValueError(f"degree: at least 5 is needed, got {self.degree}")
+        if self.samples < 2:
+            raise ValueError(f"samples: at least 2 are needed, got {self.samples}")
+        if self.iterations < 1:
+            raise ValueError(f"iterations: at least 1 is needed, got {self.iterations}")
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class DynamicCom:
+    """A dynamically consistent COM: ``curve`` (one segment per phase), ``phase_times``
+    (n + 1,) s, ``iterations`` used, and ``valid`` True when Eq. 1 held exactly at every
+    collocation time of the last iterate."""
+
+    curve: PiecewiseBezier
+    phase_times: FloatArray
+    iterations: int
+    valid: bool
+
+
+def _second_difference(degree: int) -> FloatArray:
+    """(degree - 1, degree + 1) map from control points to second-derivative points
+    (without the degree (degree - 1) / T^2 factor)."""
+    out = np.zeros((degree - 1, degree + 1))
+    for k in range(degree - 1):
+        out[k, k : k + 3] = (1.0, -2.0, 1.0)
+    return out
+
+
+def _skew(u: FloatArray) -> FloatArray:
+    return np.array([[0.0, -u[2], u[1]], [u[2], 0.0, -u[0]], [-u[1], u[0], 0.0]])
+
+
+class _Layout:
+    """Variable layout: control points of every phase (phase, point, xyz), then the
+    generator weights of every collocation sample."""
+
+    def __init__(self, phases: Sequence[ContactPhase], degree: int, samples: int) -> None:
+        self.n_phases = len(phases)
+        self.points = degree + 1
+        self.n_curve = self.n_phases * self.points * 3
+        self.weights_at: list[list[int]] = []
+        offset = self.n_curve
+        for phase in phases:
+            m = phase.wrench_generators.shape[0]
+            row = []
+            for _ in range(samples):
+                row.append(offset)
+                offset += m
+            self.weights_at.append(row)
+        self.n = offset
+
+    def point(self, phase: int, index: int) -> int:
+        """Index of the x coordinate of control point ``index`` of ``phase``."""
+        return (phase * self.points + index) * 3
+
+
+def dynamic_com(
+    phases: Sequence[ContactPhase],
+    durations: Sequence[float],
+    start: FloatArray,
+    end: FloatArray,
+    *,
+    kinematics: Sequence[Halfspaces | None] | None = None,
+    reference: PiecewiseBezier | None = None,
+    reference_times: Sequence[float] | None = None,
+    settings: DynamicSettings | None = None,
+) -> DynamicCom | None:
+    """A C2 COM from ``start`` to ``end`` (3,), at rest at both, phase j lasting
+    durations[j] s, whose wrench lies in phase j's contact cone at ``settings.samples``
+    times of the phase and whose position satisfies ``kinematics[j]`` there. The curve
+    stays near ``reference`` (or None), whose phase j spans reference_times[j] to
+    reference_times[j + 1] (n + 1 times, s; the reference is compared phase by phase at the
+    same fractions of each phase). None when a
+    QP is infeasible; ``valid`` False when the linearisation did not settle into an exactly
+    valid curve within ``settings.iterations`` rounds."""
+    settings = settings or DynamicSettings()
+    phases = list(phases)
+    if not phases:
+        raise ValueError("phases: at least one contact phase is needed")
+    times = np.concatenate([[0.0], np.cumsum(np.asarray(durations, dtype=np.float64))])
+    if len(durations) != len(phases) or not np.all(np.diff(times) > 0):
+        raise ValueError("durations: one positive duration per phase is needed")
+    c0 = as_float_array(start, (3,), "start")
+    c1 = as_float_array(end, (3,), "end")
+    kins = list(kinematics) if kinematics is not None else [None] * len(phases)
+    if len(kins) != len(phases):
+        raise ValueError("kinematics: one entry per phase is needed")
+    d = settings.degree
+    layout = _Layout(phases, d, settings.samples)
+    u = np.linspace(0.0, 1.0, settings.samples)
+    basis = bernstein(d, u)  # (samples, d + 1)
+    basis2 = bernstein(d - 2, u) @ _second_difference(d) * d * (d - 1)
+
+    sample_times = [times[j] + u * (times[j + 1] - times[j]) for j in range(len(phases))]
+    targets: list[FloatArray] | None = None
+    if reference is not None:
+        if reference_times is None or len(reference_times) != len(phases) + 1:
+            raise ValueError("reference_times: one time per phase boundary is needed")
+        rt = np.asarray(reference_times, dtype=np.float64)
+        targets = [
+            reference(np.clip(rt[j] + u * (rt[j + 1] - rt[j]), reference.t0, reference.t1))
+            for j in range(len(phases))
+        ]
+        lin = [(t, np.zeros_like(t)) for t in targets]
+    else:
+        line = [c0 + (ts / times[-1])[:, None] * (c1 - c0) for ts in sample_times]
+        lin = [(t, np.zeros_like(t)) for t in line]
+    boxes = [c for c, _ in lin]
+    eq_rows, eq_rhs, in_rows, in_rhs = _fixed_rows(layout, times, c0, c1, d, kins, boxes)
+    cost_p, cost_q = _cost(layout, times, basis, basis2, settings, targets)
+    result: DynamicCom | None = None
+    for iteration in range(1, settings.iterations + 1):
+        w_rows, w_rhs = _wrench_rows(layout, phases, times, basis, basis2, lin)
+        x = _solve(
+            layout.n,
+            cost_p,
+            cost_q,
+            sparse.vstack([eq_rows, w_rows]),
+            np.concatenate([eq_rhs, w_rhs]),
+            in_rows,
+            np.concatenate([in_rhs, np.full(layout.n - layout.n_curve, -settings.margin)]),
+        )
+        if x is None:
+            return result
+        curve = _curve(layout, x, times, d)
+        lin = [(curve(ts), curve.derivative(2)(ts)) for ts in sample_times]
+        valid = all(
+            equilibrium_margin(phase, c, a).feasible
+            for phase, (cs, accs) in zip(phases, lin, strict=True)
+            for c, a in zip(cs, accs, strict=True)
+        )
+        result = DynamicCom(curve, times, iteration, valid)
+        if valid:
+            return result
+    return result
+
+
+def _fixed_rows(
+    layout: _Layout,
+    times: FloatArray,
+    c0: FloatArray,
+    c1: FloatArray,
+    d: int,
+    kins: Sequence[Halfspaces | None],
+    boxes: Sequence[FloatArray],
+) -> tuple[sparse.csr_matrix, FloatArray, sparse.csr_matrix, FloatArray]:
+    """Equalities (rest ends, C0/C1/C2 joins) and inequalities (kinematics, then the
+    weight margin -beta <= -margin whose right-hand side the caller appends)."""
+    rows: list[dict[int, float]] = []
+    rhs: list[float] = []
+    n_last = layout.n_phases - 1
+    for axis in range(3):
+        for index in range(3):  # rest at the start and at the end: three equal points
+            rows.append({layout.point(0, index) + axis: 1.0})
+            rhs.append(float(c0[axis]))
+            rows.append({layout.point(n_last, d - index) + axis: 1.0})
+            rhs.append(float(c1[axis]))
+    for j in range(layout.n_phases - 1):
+        ta, tb = times[j + 1] - times[j], times[j + 2] - times[j + 1]
+        for axis in range(3):
+            a = [layout.point(j, d - k) + axis for k in range(3)]  # P_d, P_d-1, P_d-2
+            b = [layout.point(j + 1, k) + axis for k in range(3)]  # Q_0, Q_1, Q_2
+            rows.append({a[0]: 1.0, b[0]: -1.0})
+            rhs.append(0.0)
+            # velocity: (P_d - P_d-1) / ta = (Q_1 - Q_0) / tb
+            rows.append({a[0]: 1.0 / ta, a[1]: -1.0 / ta, b[1]: -1.0 / tb, b[0]: 1.0 / tb})
+            rhs.append(0.0)
+            # acceleration: (P_d - 2 P_d-1 + P_d-2) / ta^2 = (Q_2 - 2 Q_1 + Q_0) / tb^2
+            rows.append(
+                {
+                    a[0]: 1.0 / ta**2,
+                    a[1]: -2.0 / ta**2,
+                    a[2]: 1.0 / ta**2,
+                    b[2]: -1.0 / tb**2,
+                    b[1]: 2.0 / tb**2,
+                    b[0]: -1.0 / tb**2,
+                }
+            )
+            rhs.append(0.0)
+    eq = _matrix(rows, layout.n)
+    # each phase's control points stay in a box around its reference (trust region);
+    # kinematics hold on the control points (the curve lies in their convex hull, so along
+    # the whole phase, a little conservative), keeping only the rows the box can reach;
+    # KINEMATIC_SLACK absorbs round-off of the states' own COMs on the boundary
+    blocks: list[sparse.coo_matrix] = []
+    bounds: list[FloatArray] = []
+    per_phase = (d + 1) * 3
+    for j, kin in enumerate(kins):
+        low = np.min(boxes[j], axis=0) - TRUST_RADIUS
+        high = np.max(boxes[j], axis=0) + TRUST_RADIUS
+        cols = np.arange(layout.point(j, 0), layout.point(j, 0) + per_phase)
+        eye = sparse.coo_matrix(
+            (np.ones(per_phase), (np.arange(per_phase), cols)), shape=(per_phase, layout.n)
+        )
+        blocks += [eye, -eye]
+        bounds += [np.tile(high, d + 1), -np.tile(low, d + 1)]
+        if kin is None or kin.A.shape[0] == 0:
+            continue
+        centre, half = 0.5 * (low + high), 0.5 * (high - low)
+        reachable = kin.A @ centre + np.abs(kin.A) @ half > kin.b + KINEMATIC_SLACK
+        a_rows, b_rows = kin.A[reachable], kin.b[reachable]
+        if a_rows.shape[0] == 0:
+            continue
+        for i in range(d + 1):
+            col = layout.point(j, i)
+            rows_k = np.repeat(np.arange(a_rows.shape[0]), 3)
+            cols_k = np.tile(np.arange(col, col + 3), a_rows.shape[0])
+            blocks.append(
+                sparse.coo_matrix(
+                    (a_rows.ravel(), (rows_k, cols_k)), shape=(a_rows.shape[0], layout.n)
+                )
+            )
+            bounds.append(b_rows + KINEMATIC_SLACK)
+    margin = np.arange(layout.n_curve, layout.n)
+    blocks.append(
+        sparse.coo_matrix(
+            (-np.ones(margin.size), (np.arange(margin.size), margin)),
+            shape=(margin.size, layout.n),
+        )
+    )
+    in_rows = sparse.vstack(blocks).tocsr()
+    in_rhs = np.concatenate(bounds) if bounds else np.zeros(0)
+    return eq, np.asarray(rhs), in_rows, in_rhs
+
+
+KINEMATIC_SLACK = 5e-4
+"""m: how far the control points may lie outside a phase's kinematic polytope."""
+
+TRUST_RADIUS = 0.25
+"""m: how far a phase's control points may leave the box of its reference positions."""
+
+
+def _wrench_rows(
+    layout: _Layout,
+    phases: Sequence[ContactPhase],
+    times: FloatArray,
+    basis: FloatArray,
+    basis2: FloatArray,
+    lin: Sequence[tuple[FloatArray, FloatArray]],
+) -> tuple[sparse.csr_matrix, FloatArray]:
+    """Eq. 1 at every collocation sample, linearised about ``lin`` (per phase, the sample
+    positions and accelerations), in body weights: G' beta - w_lin(c, a) = w_const."""
+    data: list[FloatArray] = []
+    ri: list[NDArray[Any]] = []
+    ci: list[NDArray[Any]] = []
+    rhs: list[FloatArray] = []
+    gvec = np.array([0.0, 0.0, -GRAVITY])
+    row = 0
+    for j, phase in enumerate(phases):
+        gens = phase.wrench_generators  # (m, 6): G' beta = w / (m g), beta in body weights
+        duration = times[j + 1] - times[j]
+        cols = np.array([layout.point(j, i) for i in range(basis.shape[1])])
+        curve_cols = (cols[:, None] + np.arange(3)[None, :]).ravel()  # (3 (d + 1),)
+        for s, (c_bar, a_bar) in enumerate(zip(*lin[j], strict=True)):
+            # per unit mass: force a - g; torque c x (a - g) ~ -[a_-g]x c + [c_]x a - c_ x a_
+            dc = np.zeros((6, 3))
+            da = np.zeros((6, 3))
+            da[:3] = np.eye(3)
+            dc[3:] = -_skew(a_bar - gvec)
+            da[3:] = _skew(c_bar)
+            # (6, d + 1, 3) -> (6, 3 (d + 1)), columns in the order of curve_cols
+            block = (
+                -(
+                    basis[s][None, :, None] * dc[:, None, :]
+                    + (basis2[s] / duration**2)[None, :, None] * da[:, None, :]
+                )
+                / GRAVITY
+            )
+            rows6 = np.arange(row, row + 6)
+            ri.append(np.repeat(rows6, curve_cols.size))
+            ci.append(np.tile(curve_cols, 6))
+            data.append(block.reshape(6, -1).ravel())
+            first = layout.weights_at[j][s]
+            weight_cols = np.arange(first, first + gens.shape[0])
+            ri.append(np.repeat(rows6, weight_cols.size))
+            ci.append(np.tile(weight_cols, 6))
+            data.append(gens.T.ravel())
+            rhs.append(np.concatenate([-gvec, -np.cross(c_bar, a_bar)]) / GRAVITY)
+            row += 6
+    matrix = sparse.coo_matrix(
+        (np.concatenate(data), (np.concatenate(ri), np.concatenate(ci))), shape=(row, layout.n)
+    )
+    return matrix.tocsr(), np.concatenate(rhs)
+
+
+def _cost(
+    layout: _Layout,
+    times: FloatArray,
+    basis: FloatArray,
+    basis2: FloatArray,
+    settings: DynamicSettings,
+    targets: Sequence[FloatArray] | None,
+) -> tuple[sparse.csc_matrix, FloatArray]:
+    """0.5 x' P x + q' x: squared accelerations (times the phase's share of time),
+    squared distance to the reference, squared weights."""
+    n = layout.n
+    data: list[FloatArray] = []
+    ri: list[NDArray[Any]] = []
+    ci: list[NDArray[Any]] = []
+    q = np.zeros(n)
+    samples = basis.shape[0]
+    for j in range(layout.n_phases):
+        duration = times[j + 1] - times[j]
+        share = duration / samples
+        acc = basis2 / duration**2
+        gram = settings.acceleration_weight * share * acc.T @ acc
+        ref = None if targets is None else targets[j]
+        if ref is not None:
+            gram = gram + settings.tracking_weight * share * basis.T @ basis
+        cols = np.array([layout.point(j, i) for i in range(basis.shape[1])])
+        for axis in range(3):
+            idx = cols + axis
+            ri.append(np.repeat(idx, idx.size))
+            ci.append(np.tile(idx, idx.size))
+            data.append(gram.ravel())
+            if ref is not None:
+                q[idx] -= settings.tracking_weight * share * basis.T @ ref[:, axis]
+    weights = np.arange(layout.n_curve, n)
+    ri.append(weights)
+    ci.append(weights)
+    data.append(np.full(weights.size, settings.force_weight))
+    p = sparse.coo_matrix(
+        (np.concatenate(data), (np.concatenate(ri), np.concatenate(ci))), shape=(n, n)
+    )
+    return sparse.triu(p.tocsc(), format="csc"), q
+
+
+def _matrix(rows: Sequence[dict[int, float]], n: int) -> sparse.csr_matrix:
+    data, ri, ci = [], [], []
+    for r, row in enumerate(rows):
+        for c, v in row.items():
+            ri.append(r)
+            ci.append(c)
+            data.append(v)
+    return sparse.csr_matrix((data, (ri, ci)), shape=(len(rows), n))
+
+
+def _solve(
+    n: int,
+    p: sparse.csc_matrix,
+    q: FloatArray,
+    a_eq: sparse.spmatrix,
+    b_eq: FloatArray,
+    a_in: sparse.spmatrix,
+    b_in: FloatArray,
+) -> FloatArray | None:
+    """min 0.5 x'Px + q'x s.t. a_eq x = b_eq, a_in x <= b_in; None unless solved."""
+    a = sparse.vstack([a_eq, a_in]).tocsc()
+    b = np.concatenate([b_eq, b_in])
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    cones = [clarabel.ZeroConeT(a_eq.shape[0]), clarabel.NonnegativeConeT(a_in.shape[0])]
+    solution = clarabel.DefaultSolver(p, q, a, b, cones, settings).solve()
+    if solution.status != clarabel.SolverStatus.Solved:
+        return None
+    x = np.asarray(solution.x, dtype=np.float64)
+    return x if x.shape == (n,) and np.all(np.isfinite(x)) else None
+
+
+def _curve(layout: _Layout, x: FloatArray, times: FloatArray, d: int) -> PiecewiseBezier:
+    segments = []
+    for j in range(layout.n_phases):
+        start = layout.point(j, 0)
+        ctrl = x[start : start + (d + 1) * 3].reshape(d + 1, 3)
+        segments.append(BezierCurve(ctrl, float(times[j]), float(times[j + 1])))
+    return PiecewiseBezier(tuple(segments))
+
+
+__all__ = ["DynamicCom", "DynamicSettings", "dynamic_com"]
