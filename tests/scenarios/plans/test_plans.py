@@ -206,9 +206,6 @@ def test_keyframes_hold_contacts_and_com_stays_in_kinematic_polytopes(planned) -
 # bench/motion.py; issue 12 stays open for them): the rest of the audit holds there too.
 STILL_COLLIDING = frozenset(
     {
-        # a foot landing on debris beyond the ground plate (|y| > 0.5 m), 1 cm below the
-        # plate's top: the audit takes the plate for an unbounded half-space, 7 keyframes
-        "hpp_slalom_debris_around_hyq",
         "rubble_quadruped",  # a foot into a block
     }
 )
