@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
@@ -16,7 +18,7 @@ from service.files import remove_leftovers
 from service.job_runner import JobRunner
 from service.jobs import SqliteJobStore
 from service.lanes import Lanes
-from service.metrics import Metrics
+from service.metrics import LIVE_REFRESH_S, Metrics, multiprocess_dir
 from service.results import ResultStore, code_version
 from service.routes import (
     characters,
@@ -41,7 +43,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     """Build the app; the registry (characters, offline data) loads in the lifespan."""
     settings = settings or get_settings()
     configure_logging(settings.log_level)
-    app_metrics = Metrics()
+    # several uvicorn workers: one set of figures for all of them (prometheus multiprocess)
+    app_metrics = Metrics(multiprocess_dir(settings.home))
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -67,11 +70,17 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             max_bytes=settings.results_max_bytes,
         )
         log.info("gecko ready: %d characters", len(registry.characters))
+        live = asyncio.create_task(_refresh_live(app_metrics)) if app_metrics.multiprocess else None
         try:
             yield
         finally:
+            if live is not None:
+                live.cancel()
+                with contextlib.suppress(asyncio.CancelledError):
+                    await live
             await app.state.jobs.close()
             lanes.shutdown()
+            app_metrics.close()
 
     app = FastAPI(
         title="Gecko",
@@ -111,3 +120,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         )
     app.add_middleware(Telemetry, metrics=app_metrics)
     return app
+
+
+async def _refresh_live(app_metrics: Metrics) -> None:
+    """Multiprocess metrics: this worker's lane and memory gauges, kept current."""
+    while True:
+        await asyncio.sleep(LIVE_REFRESH_S)
+        try:
+            app_metrics.refresh_live()
+        except OSError as exc:  # the metrics directory removed under us: say so, go on
+            log.warning("could not refresh the metrics: %s", exc)

@@ -7,13 +7,16 @@ Errors the client can fix are raised as :class:`~service.errors.ApiError` (pickl
 
 from __future__ import annotations
 
+import gzip
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from pydantic import BaseModel
 
 from planner.ballistic.planner import JumpEnd, JumpParams, RoadmapStore, plan_jumps
 from planner.ballistic.roadmap import RoadmapParams
@@ -31,6 +34,7 @@ from service import convert, schemas
 from service.errors import ApiError, not_found
 from service.jobs import SqliteJobStore
 from service.registry import CharacterEntry, Registry
+from service.results import Kind, ResultStore, stored_result
 from service.workers import worker_registry, worker_settings
 from trajectory import TransitionCost
 
@@ -394,3 +398,73 @@ def run_jumps(request_json: str, seed: int, deadline: float | None = None) -> di
         timings=dict(plan.timings) if plan else {},
     )
     return response.model_dump(mode="json")
+
+
+# -- answers made ready in the worker ------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class ReadyAnswer:
+    """A plan, Twister step or jump answer computed, stored and serialised in the worker, so
+    that the service process (its event loop, ``/health``) only sends bytes: ``body`` the
+    JSON answer (gzip-compressed when ``gzipped``), ``id`` its content id, ``status`` and
+    ``timings`` for the request's log line and metrics."""
+
+    body: bytes
+    gzipped: bool
+    id: str
+    status: str
+    timings: dict[str, float]
+
+
+_RUNNERS: dict[str, Callable[[str, int, float | None], dict[str, Any]]] = {
+    "plan": run_plan,
+    "step": run_twister_step,
+    "jump": run_jumps,
+}
+_MODELS: dict[str, tuple[type[BaseModel], type[BaseModel]]] = {
+    "plan": (schemas.PlanRequest, schemas.PlanResponse),
+    "step": (schemas.TwisterStepRequest, schemas.TwisterStepResponse),
+    "jump": (schemas.JumpRequest, schemas.JumpResponse),
+}
+_RESULTS: list[ResultStore] = []  # the worker's result store, made on first use
+
+
+def _result_store() -> ResultStore:
+    if not _RESULTS:
+        settings = worker_settings()
+        _RESULTS.append(
+            ResultStore(
+                settings.results_path,
+                max_count=settings.results_max_count,
+                max_bytes=settings.results_max_bytes,
+            )
+        )
+    return _RESULTS[0]
+
+
+def run_ready(
+    kind: Kind,
+    request_json: str,
+    seed: int,
+    deadline: float | None = None,
+    *,
+    gzip_from: int | None = None,
+    gzip_level: int = 6,
+) -> ReadyAnswer:
+    """``kind``'s work (``run_plan``, ``run_twister_step`` or ``run_jumps``) in a worker, its
+    answer given its content id and stored (the store is the service's, shared by every
+    process), then validated against the response model and serialised as the route would;
+    gzip-compressed when ``gzip_from`` is given (the client accepts gzip) and the body has
+    at least that many bytes."""
+    answer = _RUNNERS[kind](request_json, seed, deadline)
+    request_model, response_model = _MODELS[kind]
+    request = request_model.model_validate_json(request_json).model_dump(mode="json")
+    stored, summary = stored_result(kind, request, seed, answer)
+    _result_store().put(stored, summary)
+    body = response_model.model_validate(stored.response).model_dump_json().encode()
+    gzipped = gzip_from is not None and len(body) >= gzip_from
+    if gzipped:
+        body = gzip.compress(body, compresslevel=gzip_level, mtime=0)
+    timings = stored.response.get("timings") or {}
+    return ReadyAnswer(body, gzipped, stored.id, str(stored.response.get("status")), timings)

@@ -8,7 +8,7 @@ import asyncio
 import contextlib
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, TypeVar
 
 from fastapi import Request
 from starlette.types import Receive
@@ -18,6 +18,7 @@ from service.errors import ApiError
 from service.lanes import Lane
 from service.schemas import ErrorBody
 
+T = TypeVar("T")
 CLIENT_CLOSED = 499  # the status logged for a request whose client went away (nginx's)
 
 
@@ -31,13 +32,13 @@ async def _disconnected(receive: Receive) -> None:
 
 async def run_interactive(
     request: Request,
-    function: Callable[..., dict[str, Any]],
+    function: Callable[..., T],
     request_json: str,
     seed: int,
     *,
     budget_s: float,
     answer_within_s: float,
-) -> dict[str, Any]:
+) -> T:
     """``function(request_json, seed, deadline)`` in the interactive lane.
 
     ``deadline`` is the request's arrival plus ``budget_s``: a request still queued then is

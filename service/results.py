@@ -7,7 +7,8 @@ id. Each result is ``<id>.json`` ({"kind", "id", "request", "response"}) with a 
 into place, so readers never see half a file and several service workers may share the
 directory. The store is bounded by a count and a byte size: after each write the least
 recently used results (by modification time; a read touches it) are removed until both
-bounds hold.
+bounds hold (down to ``LOW_WATER`` of them, so that a full store is not scanned on every
+write; whether a bound is passed is read from one directory listing).
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ log = logging.getLogger("gecko.results")
 Kind = Literal["plan", "step", "jump"]
 KINDS: tuple[Kind, ...] = ("plan", "step", "jump")
 ID_LENGTH = 32
+LOW_WATER = 0.95  # a write past a bound evicts down to this share of the bounds
 CODE_PACKAGES = ("trajectory", "planner", "service")
 
 
@@ -55,6 +57,25 @@ def result_id(kind: Kind, request: dict[str, Any], seed: int) -> str:
     canonical = json.dumps({**request, "seed": seed}, sort_keys=True, separators=(",", ":"))
     text = f"{kind}\n{code_version()}\n{canonical}"
     return hashlib.sha256(text.encode()).hexdigest()[:ID_LENGTH]
+
+
+def stored_result(
+    kind: Kind, request: dict[str, Any], seed: int, answer: dict[str, Any]
+) -> tuple[StoredResult, dict[str, Any]]:
+    """An answer ready to keep: the stored result (the answer with its content ``id``) and
+    its summary for listings. ``request`` is the request's JSON form (defaults filled in)."""
+    rid = result_id(kind, request, seed)
+    response = {**answer, "id": rid}
+    keyframes = response.get("keyframes") or []
+    summary = {
+        "character": request.get("character"),
+        "scene": request.get("scene"),
+        "status": response.get("status"),
+        "seed": seed,
+        "keyframes": len(keyframes),
+        "duration": keyframes[-1]["t"] if keyframes else 0.0,
+    }
+    return StoredResult(kind, rid, {**request, "seed": seed}, response), summary
 
 
 def is_result_id(text: str) -> bool:
@@ -82,6 +103,9 @@ class ResultStore:
         self.max_count = max_count
         self.max_bytes = max_bytes
         self.directory.mkdir(parents=True, exist_ok=True)
+        # bytes of each stored file by name, as this process last saw it: a file is written
+        # once under its content id, so after a first stat its size is known
+        self._sizes: dict[str, int] = {}
 
     def _paths(self, rid: str) -> tuple[Path, Path]:
         return self.directory / f"{rid}.json", self.directory / f"{rid}.meta.json"
@@ -108,8 +132,37 @@ class ResultStore:
         path, meta_path = self._paths(result.id)
         _atomic_write(meta_path, meta)
         _atomic_write(path, body)
-        self.evict(keep=result.id)
+        self._sizes[meta_path.name] = len(meta)
+        self._sizes[path.name] = len(body)
+        if self._over_bounds():
+            self.evict(keep=result.id, low_water=True)
         return True
+
+    def _over_bounds(self) -> bool:
+        """Whether the stored results may exceed a bound: one directory listing, and a stat
+        only of the files this process has not seen yet (the full, ordered scan of
+        :meth:`evict` runs only then, not after every write)."""
+        count = total = 0
+        sizes: dict[str, int] = {}
+        try:
+            with os.scandir(self.directory) as entries:
+                for entry in entries:
+                    name = entry.name
+                    if not name.endswith(".json") or is_temporary(name):
+                        continue
+                    size = self._sizes.get(name)
+                    if size is None:
+                        try:
+                            size = entry.stat().st_size
+                        except OSError:
+                            continue
+                    sizes[name] = size
+                    total += size
+                    count += not name.endswith(".meta.json")
+        except OSError:
+            return True
+        self._sizes = sizes
+        return count > self.max_count or total > self.max_bytes
 
     def get(self, rid: str, kind: Kind | None = None) -> StoredResult | None:
         """The result with this id (of this kind, when given), or None; marks it as used."""
@@ -151,9 +204,15 @@ class ResultStore:
                 out.append(meta)
         return out
 
-    def evict(self, keep: str | None = None) -> int:
+    def evict(self, keep: str | None = None, *, low_water: bool = False) -> int:
         """Remove least recently used results until the count and byte bounds hold; returns
-        how many were removed. ``keep`` is never removed."""
+        how many were removed. ``keep`` is never removed. With ``low_water`` (a write past a
+        bound), down to ``LOW_WATER`` of the bounds, so that a full store is not scanned
+        again on every write."""
+        max_count, max_bytes = self.max_count, self.max_bytes
+        if low_water:
+            max_count -= int(max_count * (1.0 - LOW_WATER))
+            max_bytes -= int(max_bytes * (1.0 - LOW_WATER))
         entries = []
         for path in self.directory.glob("*.json"):
             if path.name.endswith(".meta.json") or is_temporary(path.name):
@@ -169,7 +228,7 @@ class ResultStore:
         total = sum(size for _, _, size in entries)
         removed = 0
         for _, rid, size in entries:
-            if count <= self.max_count and total <= self.max_bytes:
+            if count <= max_count and total <= max_bytes:
                 break
             if rid == keep:
                 continue

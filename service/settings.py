@@ -85,6 +85,13 @@ class Settings(BaseSettings):
     worker_processes: int = Field(
         default=2, ge=1, le=64, description="planning processes per service worker"
     )
+    worker_nice: int = Field(
+        default=10,
+        ge=0,
+        le=19,
+        description="niceness added to the planning, job and upload processes, so that the "
+        "service process (its event loop, /health) gets a core at once when it needs one",
+    )
     data_seed: int = Field(default=0, ge=0)
     interactive_queue: int = Field(
         default=16,

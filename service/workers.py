@@ -8,6 +8,7 @@ scenes load once per process (from the on-disk caches).
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import ctypes.util
 import os
@@ -79,6 +80,15 @@ def die_with_parent(parent_pid: int) -> bool:
     return True
 
 
+def lower_priority(nice: int) -> None:
+    """Add ``nice`` to this process's niceness (Unix): the compute processes keep every
+    core busy under load, and the service process, which only answers and waits, must not
+    queue behind them for one (a ``/health`` answers in milliseconds, not a time slice)."""
+    if nice > 0 and hasattr(os, "nice"):
+        with contextlib.suppress(OSError):  # not allowed here: the same priority
+            os.nice(nice)
+
+
 def serve_tasks(connection: Connection, settings_json: str, parent_pid: int | None = None) -> None:
     """A planning process's loop: receive ``(function, args)``, send back ``("ok", value)``
     or ``("error", exception)``, until the service closes its end of the pipe (or dies).
@@ -87,6 +97,7 @@ def serve_tasks(connection: Connection, settings_json: str, parent_pid: int | No
     if parent_pid is not None:
         die_with_parent(parent_pid)
     _init_worker(settings_json)
+    lower_priority(worker_settings().worker_nice)
     while True:
         try:
             function, args = connection.recv()

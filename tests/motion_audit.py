@@ -19,7 +19,8 @@ Scene
 
     - ``halfspace``: the ground. A horizontal flat sheet, or a convex slab with a flat top,
       whose x-y box covers at least ``GROUND_COVER`` of the scene's and whose top is no
-      higher than the top of any other component. Everything below it is inside (true depth).
+      higher than the top of any other component. Everything below it and within its x-y
+      footprint is inside (true depth).
     - ``convex``: a component whose faces all lie on the boundary of its (3-D) convex hull is
       that hull's solid (``coal.Convex``): closed boxes and cylinders, and the boxes left open
       at the bottom where they stand on the ground, posts open where they run into a rail.
@@ -387,7 +388,9 @@ class AuditScene:
             name = f"component {i}"
             if i == ground:
                 top = float(b[1, 2])
-                bounds = np.array([[-np.inf, -np.inf, -np.inf], [np.inf, np.inf, top]])
+                # the solid below the top, but only under the sheet's own x-y footprint: a
+                # link beside the plate (over debris lying off it) is not under the ground
+                bounds = np.array([[b[0, 0], b[0, 1], -np.inf], [b[1, 0], b[1, 1], top]])
                 halfspace = coal.Halfspace(np.array([0.0, 0.0, 1.0]), top)
                 objects.append(
                     SceneObject("halfspace", halfspace, bounds, True, np.zeros((0, 3, 3)), name)

@@ -3,9 +3,10 @@ degree elevation, concatenation and arc length. Out-of-range times raise ValueEr
 
 from __future__ import annotations
 
+import bisect
 import itertools
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 from math import comb
 
@@ -134,6 +135,7 @@ class PiecewiseBezier:
     """Consecutive Bezier segments; segment i ends at the time segment i + 1 starts."""
 
     segments: tuple[BezierCurve, ...]
+    _starts: tuple[float, ...] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         segs = tuple(self.segments)
@@ -143,6 +145,7 @@ class PiecewiseBezier:
             if abs(a.t1 - b.t0) > 1e-9 * max(1.0, abs(a.t1)):
                 raise ValueError("segments: time intervals must be contiguous")
         object.__setattr__(self, "segments", segs)
+        object.__setattr__(self, "_starts", tuple(float(b) for b in self.breaks))
 
     @property
     def t0(self) -> float:
@@ -161,6 +164,14 @@ class PiecewiseBezier:
 
     def __call__(self, t: float | FloatArray) -> FloatArray:
         """Points: t scalar -> (d,), t (n,) -> (n, d); the later segment wins at a break."""
+        if np.ndim(t) == 0:  # one time (a tracker's step): no masks, same arithmetic
+            x = float(t)
+            if not self.t0 - 1e-12 <= x <= self.t1 + 1e-12:
+                raise ValueError(f"t: out of range [{self.t0}, {self.t1}]")
+            i = min(max(bisect.bisect_right(self._starts, x) - 1, 0), len(self.segments) - 1)
+            seg = self.segments[i]
+            point: FloatArray = seg(np.array([min(max(x, seg.t0), seg.t1)]))[0]
+            return point
         tt = np.atleast_1d(np.asarray(t, dtype=np.float64))
         if np.any(tt < self.t0 - 1e-12) or np.any(tt > self.t1 + 1e-12):
             raise ValueError(f"t: out of range [{self.t0}, {self.t1}]")

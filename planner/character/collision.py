@@ -69,6 +69,22 @@ def capsule_geometry_model(model: Any, radius: float) -> Any:
     return gmodel
 
 
+def hull_geometry_model(model: Any, urdf_text: str, package_dirs: Sequence[str]) -> Any:
+    """The URDF's own collision geometry (``<collision>`` elements), each mesh element
+    replaced by its convex hull (``coal.Convex``, Qhull): the body as it is, for the
+    whole-body motion (``Character.motion_geometry``). Primitive elements (boxes, cylinders,
+    spheres) stay as they are. Meshes are looked up under ``package_dirs``; raises whatever
+    Pinocchio raises when one cannot be read."""
+    gmodel = pin.buildGeomFromUrdfString(
+        model, urdf_text, pin.GeometryType.COLLISION, package_dirs=list(package_dirs)
+    )
+    for obj in gmodel.geometryObjects:
+        if isinstance(obj.geometry, coal.BVHModelBase):
+            obj.geometry.buildConvexHull(False, "Qt")
+            obj.geometry = obj.geometry.convex
+    return gmodel
+
+
 PLATE_THICKNESS = 0.03
 """m, thickness of the box standing on a patch effector's contact area in ``capsules`` mode."""
 
@@ -191,9 +207,24 @@ def _apply(rot: FloatArray, vec: FloatArray) -> FloatArray:
     )
 
 
-def _segment_distances(
-    p1: FloatArray, q1: FloatArray, p2: FloatArray, q2: FloatArray
-) -> FloatArray:
+def bounding_segment(geom: Any) -> tuple[FloatArray, FloatArray, float]:
+    """A capsule (end a, end b, radius) containing the shape, in the shape's frame: for a
+    convex hull, along its longest AABB axis, as long as the points' extent along it and as
+    thick as their farthest from it; for other shapes, see :func:`_bounding_capsule`."""
+    if isinstance(geom, coal.ConvexBase) and geom.num_points > 0:
+        points = np.asarray(geom.points(), dtype=np.float64).reshape(-1, 3)
+        lo, hi = points.min(axis=0), points.max(axis=0)
+        k = int(np.argmax(hi - lo))
+        centre = (lo + hi) / 2.0
+        radial = np.delete(points - centre, k, axis=1)
+        end_a, end_b = centre.copy(), centre.copy()
+        end_a[k], end_b[k] = lo[k], hi[k]
+        return end_a, end_b, float(np.sqrt(np.max(np.sum(radial * radial, axis=1))))
+    end_a, end_b, radius, _ = _bounding_capsule(geom)
+    return end_a, end_b, radius
+
+
+def segment_distances(p1: FloatArray, q1: FloatArray, p2: FloatArray, q2: FloatArray) -> FloatArray:
     """(...,) distances between segments [p1, q1] and [p2, q2] given as (..., 3) arrays."""
     eps = 1e-12
     d1, d2, r = q1 - p1, q2 - p2, p1 - p2
@@ -373,7 +404,7 @@ class SelfCollisionChecker:
         if len(sample_idx) == 0:
             return hit
         pa, pb = a[pair_idx], b[pair_idx]
-        dist = _segment_distances(
+        dist = segment_distances(
             ends_a[sample_idx, pa],
             ends_b[sample_idx, pa],
             ends_a[sample_idx, pb],
@@ -394,7 +425,7 @@ class SelfCollisionChecker:
         # Sure hits: the inner capsules (contained in the shapes) already intersect.
         ri, rk = rot[sample_idx, self.joint[ga]], rot[sample_idx, self.joint[gb]]
         ti, tk = trans[sample_idx, self.joint[ga]], trans[sample_idx, self.joint[gb]]
-        inner = _segment_distances(
+        inner = segment_distances(
             np.einsum("mab,mb->ma", ri, self.inner_a[ga]) + ti,
             np.einsum("mab,mb->ma", ri, self.inner_b[ga]) + ti,
             np.einsum("mab,mb->ma", rk, self.inner_a[gb]) + tk,

@@ -22,6 +22,7 @@ from planner.character.collision import (
     add_trunk_shapes,
     capsule_geometry_model,
     drop_trunk_pairs,
+    hull_geometry_model,
     set_collision_pairs,
 )
 from planner.character.spec import CharacterSpec, LimbSpec, SpecError, read_spec
@@ -92,9 +93,14 @@ class Character:
 
     model : pin.Model with a free-flyer root (joint 1, ``root_joint``); geometry :
     pin.GeometryModel for self-collision (pairs declared, adjacent and reference-colliding
-    pairs removed). joint_names : actuated joints in configuration order (free flyer
-    excluded). q_ref : (nq,) reference standing configuration, root [x, y, z, qx, qy, qz, qw]
-    then joints. lower / upper : (n,) joint limits, rad. trunk : W0 shapes in the root frame.
+    pairs removed) of the planner's checks and offline data (in ``capsules`` mode, the
+    capsules). motion_geometry : the body as the URDF models it (its ``<collision>`` shapes,
+    meshes as their convex hulls; pairs declared the same way), which the whole-body motion
+    keeps out of the scene and checks every keyframe against; ``geometry`` itself when the
+    mode is ``urdf`` or the meshes cannot be read. joint_names : actuated joints in
+    configuration order (free flyer excluded). q_ref : (nq,) reference standing
+    configuration, root [x, y, z, qx, qy, qz, qw] then joints. lower / upper : (n,) joint
+    limits, rad. trunk : W0 shapes in the root frame.
     """
 
     id: str
@@ -104,6 +110,7 @@ class Character:
     spec: CharacterSpec
     model: Any
     geometry: Any
+    motion_geometry: Any
     mass: float
     joint_names: tuple[str, ...]
     q_ref: FloatArray
@@ -228,6 +235,22 @@ def _limb(model: Any, spec: LimbSpec, i: int) -> Limb:
     )
 
 
+def _motion_geometry(model: Any, urdf_text: str, urdf_path: Path, q_ref: FloatArray) -> Any:
+    """The URDF's collision geometry with mesh elements as convex hulls, its self-collision
+    pairs declared as for ``geometry`` (see :func:`set_collision_pairs`); None when a mesh
+    cannot be read (the caller keeps the capsules)."""
+    dirs = [str(urdf_path.parent)]
+    share = example_robot_data_share()
+    if share is not None:
+        dirs.insert(0, str(share))
+    try:
+        gmodel = hull_geometry_model(model, urdf_text, dirs)
+    except (RuntimeError, ValueError, OSError):
+        return None
+    set_collision_pairs(model, gmodel, q_ref)
+    return gmodel
+
+
 def _lowest_contact_z(model: Any, limbs: tuple[Limb, ...], q: FloatArray) -> float:
     data = model.createData()
     pin.framesForwardKinematics(model, data, q)
@@ -292,6 +315,10 @@ def load_character(spec_path: str | Path) -> Character:
         add_trunk_shapes(geometry, trunk)
     set_collision_pairs(model, geometry, q)
     drop_trunk_pairs(geometry)
+    motion_geometry = geometry
+    if spec.self_collision_mode != "urdf":
+        hulls = _motion_geometry(model, urdf_text, urdf_path, q)
+        motion_geometry = geometry if hulls is None else hulls
     mass = float(sum(inertia.mass for inertia in model.inertias))
     return Character(
         id=spec.id,
@@ -301,6 +328,7 @@ def load_character(spec_path: str | Path) -> Character:
         spec=spec,
         model=model,
         geometry=geometry,
+        motion_geometry=motion_geometry,
         mass=mass,
         joint_names=names,
         q_ref=_ro(q),

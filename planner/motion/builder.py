@@ -306,7 +306,7 @@ def _track_segment(
         check = checker.check(q, phase.stance)
         com = np.asarray(pin.centerOfMass(model, checker.data, q), dtype=np.float64)
         out.checks.append(check)
-        out.com_errors.append(float(np.linalg.norm(com - targets.at(t).com)))
+        out.com_errors.append(float(np.linalg.norm(com - targets.com(t))))
         out.keyframes.append(
             Keyframe(t=t, q=q.copy(), contacts=tuple(c.limb for c in phase.stance))
         )
@@ -362,7 +362,7 @@ def _blend_into(
         keyframes[i] = Keyframe(t=key.t, q=q, contacts=key.contacts)
         checks[i] = checker.check(q, phase.stance)
         com = np.asarray(pin.centerOfMass(model, checker.data, q), dtype=np.float64)
-        com_errors[i] = float(np.linalg.norm(com - targets.at(key.t).com))
+        com_errors[i] = float(np.linalg.norm(com - targets.com(key.t)))
     return np.array(keyframes[-1].q)
 
 
@@ -394,7 +394,7 @@ def build_motion(
             groups[-1].append(t)
         else:
             groups.append([t])
-    objects = list(character.geometry.geometryObjects)
+    objects = list(character.motion_geometry.geometryObjects)
     limb_shapes = {
         limb.name: frozenset(
             str(o.name) for o in objects if int(o.parentJoint) in set(limb.joint_ids.tolist())

@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from planner.character import Character
 from planner.motion import tuning
-from planner.motion.clearance import SceneDistances
+from planner.motion.clearance import PairBroadPhase, SceneDistances
 from planner.motion.tracker import effector_geometries
 
 if TYPE_CHECKING:
@@ -62,11 +62,12 @@ class KeyframeChecker:
         self.character = character
         self.model = character.model
         self.data = self.model.createData()
-        self.geometry = character.geometry
+        self.geometry = character.motion_geometry
         self.geometry_data = pin.GeometryData(self.geometry)
         for request in self.geometry_data.distanceRequests:
             request.enable_signed_distance = True
-        self.distances = SceneDistances(scene_bvh, obstacles)
+        self.distances = SceneDistances(scene_bvh, obstacles, self.geometry)
+        self.broad = PairBroadPhase(self.geometry)
         self.effectors = effector_geometries(character)
 
     def check(self, q: FloatArray, stance: Sequence[LimbContact]) -> KeyframeCheck:
@@ -83,14 +84,18 @@ class KeyframeChecker:
             gap = frame.translation - contact.placement[:3, 3]
             hold = max(hold, float(np.sqrt(gap @ gap)))
         deepest, shape = 0.0, None
+        settled = self.distances.settled(self.geometry_data, 0.0)
         for i, obj in enumerate(self.geometry.geometryObjects):
-            if i in skipped:
+            if i in skipped or settled[i]:
                 continue
             d = self.distances.nearest(obj.geometry, self.geometry_data.oMg[i])
+            self.distances.remember(i, d)
             if -d > deepest:
                 deepest, shape = -d, str(obj.name)
-        pin.computeDistances(self.geometry, self.geometry_data)
         self_depth = 0.0
-        for result in self.geometry_data.distanceResults:
-            self_depth = max(self_depth, -float(result.min_distance))
+        for k in self.broad.near(self.geometry_data, 0.0):
+            pin.computeDistance(self.geometry, self.geometry_data, k)
+            d = float(self.geometry_data.distanceResults[k].min_distance)
+            self.broad.remember(k, d)
+            self_depth = max(self_depth, -d)
         return KeyframeCheck(deepest, shape, self_depth, hold)

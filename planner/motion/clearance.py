@@ -9,7 +9,8 @@ normal ``n`` from ``a`` to ``b`` (coal), the step ``dq`` must satisfy
 so that no pair closes more than a fraction of its remaining gap to ``d_s`` per step
 (Faverjon and Tournassoud's damper in discrete time). ``J(p)`` is the Jacobian of the body
 point ``p`` (world axes); the scene does not move. Both limits follow pink's ``Limit``
-interface (``G dq <= h``) and read the kinematics pink computed for the step.
+interface (``G dq <= h``) and read the kinematics pink computed for the step. The body shapes
+are ``Character.motion_geometry`` (a real robot's URDF meshes as convex hulls).
 
 coal gives one witness pair per shape, so a foot rising along a riser sees only the riser,
 then only the tread once past the edge, and would slide into the corner between them. The
@@ -29,20 +30,34 @@ import pinocchio as pin
 from numpy.typing import NDArray
 from pink.limits import Limit
 
+from planner.character.collision import bounding_segment, segment_distances
 from planner.motion import tuning
 
 FloatArray = NDArray[np.float64]
 
 
-def point_jacobian(model: Any, data: Any, joint: int, point: FloatArray) -> FloatArray:
-    """(3, nv) Jacobian of the world velocity of the world ``point`` (3,) fixed to ``joint``;
-    needs ``computeJointJacobians`` at the current configuration."""
-    j = pin.getJointJacobian(model, data, joint, pin.LOCAL_WORLD_ALIGNED)
-    lever = point - data.oMi[joint].translation
-    skew = np.array(
-        [[0.0, -lever[2], lever[1]], [lever[2], 0.0, -lever[0]], [-lever[1], lever[0], 0.0]]
-    )
-    return np.asarray(j[:3] - skew @ j[3:], dtype=np.float64)
+class PointJacobians:
+    """Jacobians (3, nv) of the world velocity of body points at one configuration (world
+    axes), each joint's Jacobian read once (a step's rows often share joints); needs
+    ``computeJointJacobians`` there."""
+
+    def __init__(self, model: Any, data: Any) -> None:
+        self.model, self.data = model, data
+        self.joints: dict[int, tuple[FloatArray, FloatArray, FloatArray]] = {}
+
+    def __call__(self, joint: int, point: FloatArray) -> FloatArray:
+        """(3, nv) Jacobian of the world ``point`` (3,) fixed to ``joint``."""
+        cached = self.joints.get(joint)
+        if cached is None:
+            j = pin.getJointJacobian(self.model, self.data, joint, pin.LOCAL_WORLD_ALIGNED)
+            cached = (j[:3], j[3:], np.array(self.data.oMi[joint].translation))
+            self.joints[joint] = cached
+        linear, angular, origin = cached
+        lever = point - origin
+        skew = np.array(
+            [[0.0, -lever[2], lever[1]], [lever[2], 0.0, -lever[0]], [-lever[1], lever[0], 0.0]]
+        )
+        return np.asarray(linear - skew @ angular, dtype=np.float64)
 
 
 def _damper_row(
@@ -61,13 +76,33 @@ def _damper_row(
 
 class SceneDistances:
     """Signed distances (m, negative inside) of body shapes to the scene (a triangle BVH)
-    and static obstacles ((coal geometry, coal.Transform3s) pairs). Not thread-safe."""
+    and static obstacles ((coal geometry, coal.Transform3s) pairs). Not thread-safe.
 
-    def __init__(self, scene_bvh: Any, obstacles: Sequence[tuple[Any, Any]] = ()) -> None:
+    With the character's ``geometry`` (pin.GeometryModel), a shape's distance is known to
+    stay above ``d - moved`` while its points have moved at most ``moved`` since it was
+    measured ``d`` away: :meth:`settled` says for which shapes that bound alone answers a
+    query (most shapes, most steps, are far from everything), so that the convex hulls of a
+    real robot's links cost little more than capsules."""
+
+    def __init__(
+        self, scene_bvh: Any, obstacles: Sequence[tuple[Any, Any]] = (), geometry: Any = None
+    ) -> None:
         self.targets: list[tuple[Any, Any]] = [(scene_bvh, coal.Transform3s()), *obstacles]
         self.request = coal.DistanceRequest()
         self.request.enable_signed_distance = True
         self.result = coal.DistanceResult()
+        shapes = [] if geometry is None else [o.geometry for o in geometry.geometryObjects]
+        for shape in shapes:
+            shape.computeLocalAABB()
+        # per shape: bounding sphere (centre in the shape's frame, radius); the distance last
+        # measured (-inf: never) and the world centre and rotation it was measured at
+        self.local_centres = np.array([s.aabb_center for s in shapes]).reshape(-1, 3)
+        self.radii = np.array([float(s.aabb_radius) for s in shapes])
+        self.measured = np.full(len(shapes), -np.inf)
+        self.measured_centres = np.zeros((len(shapes), 3))
+        self.measured_rotations = np.zeros((len(shapes), 3, 3))
+        self.rotations = np.zeros((len(shapes), 3, 3))
+        self.centres = np.zeros((len(shapes), 3))
 
     def each(self, geometry: Any, placement: Any) -> Iterator[tuple[float, Any]]:
         """Per target, the distance of ``geometry`` at ``placement`` (pin.SE3) and coal's
@@ -82,6 +117,28 @@ class SceneDistances:
     def nearest(self, geometry: Any, placement: Any) -> float:
         """The smallest signed distance of ``geometry`` at ``placement`` to any target."""
         return min(d for d, _ in self.each(geometry, placement))
+
+    def settled(self, geometry_data: Any, threshold: float) -> NDArray[np.bool_]:
+        """(G,) whether each shape, at the placements of ``geometry_data`` (updated by the
+        caller), is surely farther than ``threshold`` m from every target: its last
+        :meth:`remember`-ed distance minus the farthest any of its points can have moved
+        since (centre displacement plus the rotation change's Frobenius norm, which bounds
+        its spectral norm, times the bounding radius). Keeps the placements for
+        :meth:`remember`."""
+        placements = geometry_data.oMg
+        self.rotations = np.array([m.rotation for m in placements]).reshape(-1, 3, 3)
+        translations = np.array([m.translation for m in placements]).reshape(-1, 3)
+        self.centres = np.einsum("gab,gb->ga", self.rotations, self.local_centres) + translations
+        shift = np.linalg.norm(self.centres - self.measured_centres, axis=1)
+        turn = np.sqrt(np.sum((self.rotations - self.measured_rotations) ** 2, axis=(1, 2)))
+        return np.asarray(self.measured - shift - turn * self.radii > threshold)
+
+    def remember(self, i: int, distance: float) -> None:
+        """Record that shape ``i`` is ``distance`` m from the nearest target at the
+        placement of the last :meth:`settled` call."""
+        self.measured[i] = distance
+        self.measured_centres[i] = self.centres[i]
+        self.measured_rotations[i] = self.rotations[i]
 
 
 class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type information
@@ -103,7 +160,7 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
         self.model = model
         self.geometry = geometry
         self.geometry_data = pin.GeometryData(geometry)
-        self.distances = SceneDistances(scene_bvh, obstacles)
+        self.distances = SceneDistances(scene_bvh, obstacles, geometry)
         self.skipped: frozenset[int] = frozenset()
         self.light: dict[int, float] = {}
         self.rows = 0
@@ -139,6 +196,8 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
         bounds: list[float] = []
         self.steps += 1
         oldest = self.steps - tuning.WITNESS_MEMORY
+        settled = self.distances.settled(self.geometry_data, tuning.INFLUENCE_DISTANCE)
+        jacobians = PointJacobians(model, data)
         for i, obj in enumerate(self.geometry.geometryObjects):
             if i in self.skipped:
                 continue
@@ -147,18 +206,22 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
             frame = data.oMi[joint]
             memory = [m for m in self.memory.get(i, []) if m[0] > oldest]
             self.memory[i] = memory
-            for d, result in self.distances.each(obj.geometry, self.geometry_data.oMg[i]):
-                if d > tuning.INFLUENCE_DISTANCE:
-                    continue
-                local = frame.actInv(np.array(result.getNearestPoint2()))
-                scene_point = np.array(result.getNearestPoint1())
-                memory.append((self.steps, scene_point, np.array(result.normal), local))
+            if not settled[i]:
+                nearest = np.inf
+                for d, result in self.distances.each(obj.geometry, self.geometry_data.oMg[i]):
+                    nearest = min(nearest, d)
+                    if d > tuning.INFLUENCE_DISTANCE:
+                        continue
+                    local = frame.actInv(np.array(result.getNearestPoint2()))
+                    scene_point = np.array(result.getNearestPoint1())
+                    memory.append((self.steps, scene_point, np.array(result.normal), local))
+                self.distances.remember(i, nearest)
             for _, scene_point, normal, local in memory:
                 point = frame.act(local)
                 d = float(normal @ (point - scene_point))
                 if d > tuning.INFLUENCE_DISTANCE:
                     continue
-                jac = point_jacobian(model, data, joint, point)
+                jac = jacobians(joint, point)
                 row, bound = _damper_row(normal, jac, d, security)
                 rows.append(row)
                 bounds.append(bound)
@@ -166,6 +229,77 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
         if not rows:
             return None
         return np.vstack(rows), np.asarray(bounds, dtype=np.float64)
+
+
+class PairBroadPhase:
+    """Broad phase of the collision pairs declared in a pin.GeometryModel.
+
+    Two filters, both exact. Each shape keeps an odometer, the sum over queries of how far
+    any of its points can have moved since the previous one (centre shift plus rotation
+    change times its bounding radius): a pair whose last known distance (:meth:`remember`,
+    or the bounding-capsule gap measured here) minus what both odometers ran since then is
+    above the margin is skipped outright. The others are tested on bounding capsules
+    (:func:`bounding_segment`); those farther apart than the margin remember their capsule
+    gap. One instance per sequence of queries (it remembers)."""
+
+    def __init__(self, geometry: Any) -> None:
+        pairs = [(int(p.first), int(p.second)) for p in geometry.collisionPairs]
+        self.pair_array = np.array(pairs, dtype=np.int64).reshape(-1, 2)
+        ends_a, ends_b, radii = [], [], []
+        for obj in geometry.geometryObjects:
+            end_a, end_b, radius = bounding_segment(obj.geometry)
+            ends_a.append(end_a)
+            ends_b.append(end_b)
+            radii.append(radius)
+        self.ends_a = np.array(ends_a, dtype=np.float64).reshape(-1, 3)
+        self.ends_b = np.array(ends_b, dtype=np.float64).reshape(-1, 3)
+        r = np.array(radii, dtype=np.float64)
+        self.radii_sum = r[self.pair_array[:, 0]] + r[self.pair_array[:, 1]]
+        # per shape: bounding sphere (its capsule's middle in its frame, radius), odometer (m)
+        # and the placement of the last query
+        self.middles = (self.ends_a + self.ends_b) / 2.0
+        self.spheres = r + np.linalg.norm(self.ends_b - self.ends_a, axis=1) / 2.0
+        self.odometer = np.zeros(len(r))
+        self.last: tuple[FloatArray, FloatArray] | None = None
+        # per pair: distance known (-inf: none), both odometers when it was known
+        n = len(self.pair_array)
+        self.known = np.full(n, -np.inf)
+        self.known_odometers = np.zeros((n, 2))
+
+    def near(self, geometry_data: Any, margin: float) -> list[int]:
+        """Indices of the pairs that may be at most ``margin`` m apart at the placements of
+        ``geometry_data`` (updated by the caller); the caller :meth:`remember` s the
+        distances it then computes."""
+        if len(self.pair_array) == 0:
+            return []
+        rot = np.array([m.rotation for m in geometry_data.oMg]).reshape(-1, 3, 3)
+        trans = np.array([m.translation for m in geometry_data.oMg]).reshape(-1, 3)
+        centres = np.einsum("gab,gb->ga", rot, self.middles) + trans
+        if self.last is not None:
+            last_rot, last_centres = self.last
+            turn = np.sqrt(np.sum((rot - last_rot) ** 2, axis=(1, 2)))
+            self.odometer += np.linalg.norm(centres - last_centres, axis=1) + turn * self.spheres
+        self.last = (rot, centres)
+        run = self.odometer[self.pair_array] - self.known_odometers
+        open_ = np.flatnonzero(self.known - run[:, 0] - run[:, 1] <= margin)
+        if len(open_) == 0:
+            return []
+        a, b = self.pair_array[open_, 0], self.pair_array[open_, 1]
+        world_a = np.einsum("gab,gb->ga", rot, self.ends_a) + trans
+        world_b = np.einsum("gab,gb->ga", rot, self.ends_b) + trans
+        gaps = segment_distances(world_a[a], world_b[a], world_a[b], world_b[b])
+        gaps -= self.radii_sum[open_]
+        far = gaps > margin
+        done = open_[far]
+        self.known[done] = gaps[far]
+        self.known_odometers[done] = self.odometer[self.pair_array[done]]
+        return [int(k) for k in open_[~far]]
+
+    def remember(self, k: int, distance: float) -> None:
+        """Pair ``k`` is at least ``distance`` m apart at the placements of the last
+        :meth:`near` call."""
+        self.known[k] = distance
+        self.known_odometers[k] = self.odometer[self.pair_array[k]]
 
 
 class SelfClearance(Limit):  # type: ignore[misc]
@@ -179,17 +313,8 @@ class SelfClearance(Limit):  # type: ignore[misc]
         for request in self.geometry_data.distanceRequests:
             request.enable_signed_distance = True
         self.pairs = [(int(p.first), int(p.second)) for p in geometry.collisionPairs]
-        self.pair_array = np.array(self.pairs, dtype=np.int64).reshape(-1, 2)
         self.joints = [int(o.parentJoint) for o in geometry.geometryObjects]
-        # bounding sphere of each shape (centre in the shape's frame, radius)
-        self.centres = []
-        radii = []
-        for obj in geometry.geometryObjects:
-            obj.geometry.computeLocalAABB()
-            self.centres.append(np.array(obj.geometry.aabb_center, dtype=np.float64))
-            radii.append(float(obj.geometry.aabb_radius))
-        r = np.array(radii)
-        self.radii_sum = r[self.pair_array[:, 0]] + r[self.pair_array[:, 1]]
+        self.broad = PairBroadPhase(geometry)
         self.rows = 0
 
     def compute_qp_inequalities(
@@ -198,28 +323,21 @@ class SelfClearance(Limit):  # type: ignore[misc]
         """``G dq <= h`` rows of the pairs within the influence distance (None if none)."""
         model, data = self.model, configuration.data
         pin.updateGeometryPlacements(model, data, self.geometry, self.geometry_data)
-        # broad phase: bounding spheres farther apart than the influence distance are skipped
-        centres = np.array(
-            [
-                self.geometry_data.oMg[i].act(self.centres[i])
-                for i in range(len(self.geometry.geometryObjects))
-            ]
-        )
-        a_idx, b_idx = self.pair_array[:, 0], self.pair_array[:, 1]
-        gaps = np.linalg.norm(centres[a_idx] - centres[b_idx], axis=1) - self.radii_sum
-        near = np.flatnonzero(gaps <= tuning.INFLUENCE_DISTANCE)
+        near = self.broad.near(self.geometry_data, tuning.INFLUENCE_DISTANCE)
+        jacobians = PointJacobians(model, data)
         rows: list[FloatArray] = []
         bounds: list[float] = []
-        for k in near.tolist():
+        for k in near:
             a, b = self.pairs[k]
             pin.computeDistance(self.geometry, self.geometry_data, k)
             result = self.geometry_data.distanceResults[k]
             d = float(result.min_distance)
+            self.broad.remember(k, d)
             if d > tuning.INFLUENCE_DISTANCE:
                 continue
             normal = np.array(result.normal)
-            jac_a = point_jacobian(model, data, self.joints[a], np.array(result.getNearestPoint1()))
-            jac_b = point_jacobian(model, data, self.joints[b], np.array(result.getNearestPoint2()))
+            jac_a = jacobians(self.joints[a], np.array(result.getNearestPoint1()))
+            jac_b = jacobians(self.joints[b], np.array(result.getNearestPoint2()))
             row, bound = _damper_row(normal, jac_b - jac_a, d, tuning.SECURITY_DISTANCE)
             rows.append(row)
             bounds.append(bound)

@@ -81,7 +81,9 @@ def effector_geometries(character: Character) -> dict[str, frozenset[int]]:
             if int(model.parents[j]) in subtree:
                 subtree.add(j)
         out[limb.name] = frozenset(
-            i for i, o in enumerate(character.geometry.geometryObjects) if o.parentJoint in subtree
+            i
+            for i, o in enumerate(character.motion_geometry.geometryObjects)
+            if o.parentJoint in subtree
         )
     return out
 
@@ -149,8 +151,8 @@ class WholeBodyTracker:
                 orientation_cost=tuning.SWING_ORIENTATION_COST if patch else 0.0,
                 gain=tuning.TASK_GAIN,
             )
-        self.scene = SceneClearance(model, character.geometry, scene_bvh, obstacles)
-        self.self_clearance = SelfClearance(model, character.geometry)
+        self.scene = SceneClearance(model, character.motion_geometry, scene_bvh, obstacles)
+        self.self_clearance = SelfClearance(model, character.motion_geometry)
         self.limits = [
             ConfigurationLimit(model),
             VelocityLimit(model, speed_limits(model)),

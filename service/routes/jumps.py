@@ -7,13 +7,13 @@ from typing import Any
 
 from anyio import to_thread
 from fastapi import APIRouter, Request
-from fastapi.responses import JSONResponse
+from fastapi.responses import JSONResponse, Response
 
 from planner.ballistic.planner import RoadmapStore
 from service import compute
 from service.deps import RegistryDep, SettingsDep
 from service.errors import not_found
-from service.interactive import BUSY_RESPONSES, run_interactive
+from service.interactive import BUSY_RESPONSES
 from service.job_runner import JobContext
 from service.jobs import Job
 from service.routes.jobs import (
@@ -29,7 +29,7 @@ from service.routes.results import (
     OverlaysQuery,
     SceneQuery,
     draw_seed,
-    remember,
+    run_answer,
     stored_answer,
 )
 from service.schemas import ErrorBody, JumpRequest, JumpResponse, RoadmapRequest, RoadmapStatus
@@ -150,19 +150,19 @@ async def cancel_roadmap(roadmap_id: str, request: Request) -> RoadmapStatus:
         **_ERRORS,
         **BUSY_RESPONSES,
     },
+    response_model=JumpResponse,
 )
-async def create_jumps(body: JumpRequest, request: Request) -> JumpResponse:
+async def create_jumps(body: JumpRequest, request: Request) -> Response:
     """Plan a sequence of ballistic jumps (on a given roadmap, or one built within budget)."""
     seed = body.seed if body.seed is not None else draw_seed()
-    answer = await run_interactive(
+    return await run_answer(
         request,
-        compute.run_jumps,
-        body.model_dump_json(),
+        "jump",
+        body,
         seed,
         budget_s=body.time_budget_s,
         answer_within_s=body.time_budget_s + GRACE_S,
     )
-    return JumpResponse.model_validate(await remember(request, "jump", body, seed, answer))
 
 
 @router.get("/jumps/{jump_id}", responses=RESULT_RESPONSES, response_model=JumpResponse)

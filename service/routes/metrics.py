@@ -18,6 +18,6 @@ router = APIRouter(tags=["health"])
 )
 async def metrics(request: Request) -> Response:
     """Request counts and latencies per route and status, answers by status, planning tasks,
-    pool restarts and roadmap builds by state (this uvicorn worker's own counts)."""
+    pool restarts and roadmap builds by state (every uvicorn worker's: see service.metrics)."""
     registry: Metrics = request.app.state.metrics
     return Response(registry.exposition(), media_type=CONTENT_TYPE_LATEST)

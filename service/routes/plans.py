@@ -10,7 +10,7 @@ from fastapi.responses import JSONResponse
 
 from service import compute
 from service.deps import RegistryDep
-from service.interactive import BUSY_RESPONSES, run_interactive
+from service.interactive import BUSY_RESPONSES
 from service.job_runner import JobContext
 from service.routes.jobs import job_status, runner_of
 from service.routes.results import (
@@ -19,8 +19,8 @@ from service.routes.results import (
     OverlaysQuery,
     SceneQuery,
     draw_seed,
-    remember,
     remember_answer,
+    run_answer,
     stored_answer,
 )
 from service.schemas import ErrorBody, JobStatus, PlanRequest, PlanResponse
@@ -51,15 +51,14 @@ async def create_plan(body: PlanRequest, request: Request) -> Any:
     seed = body.seed if body.seed is not None else draw_seed()
     if body.run_async:
         return await _plan_job(body, seed, request)
-    answer = await run_interactive(
+    return await run_answer(
         request,
-        compute.run_plan,
-        body.model_dump_json(),
+        "plan",
+        body,
         seed,
         budget_s=body.time_budget_s,
         answer_within_s=_answer_within_s(body),
     )
-    return PlanResponse.model_validate(await remember(request, "plan", body, seed, answer))
 
 
 async def _plan_job(body: PlanRequest, seed: int, request: Request) -> JSONResponse:

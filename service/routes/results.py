@@ -3,6 +3,7 @@ GLB (the routes of each kind call :func:`stored_answer`)."""
 
 from __future__ import annotations
 
+import functools
 import secrets
 from typing import Annotated, Any, Literal, TypeVar
 
@@ -11,11 +12,13 @@ from fastapi import APIRouter, Query, Request
 from fastapi.responses import Response
 from pydantic import BaseModel, ValidationError
 
+from service import compute
 from service.context import annotate
 from service.deps import RegistryDep
 from service.errors import ApiError, not_found
 from service.export import result_glb
-from service.results import Kind, ResultStore, StoredResult, result_id
+from service.interactive import run_interactive
+from service.results import Kind, ResultStore, StoredResult, stored_result
 from service.schemas import MAX_SEED, ErrorBody, ResultSummary
 
 Answer = TypeVar("Answer", bound=BaseModel)
@@ -69,22 +72,48 @@ async def remember(
     return answer
 
 
+async def run_answer(
+    request: Request,
+    kind: Kind,
+    body: BaseModel,
+    seed: int,
+    *,
+    budget_s: float,
+    answer_within_s: float,
+) -> Response:
+    """A plan, Twister step or jump run in the interactive lane and answered as the worker
+    made it ready (:func:`service.compute.run_ready`: given its id, stored, serialised and,
+    for a client that accepts it, gzipped), so that the event loop only passes bytes on."""
+    settings = request.app.state.settings
+    accepts_gzip = "gzip" in request.headers.get("accept-encoding", "").lower()
+    work = functools.partial(
+        compute.run_ready,
+        kind,
+        gzip_from=settings.gzip_minimum_bytes if accepts_gzip else None,
+        gzip_level=settings.gzip_level,
+    )
+    ready: compute.ReadyAnswer = await run_interactive(
+        request,
+        work,
+        body.model_dump_json(),
+        seed,
+        budget_s=budget_s,
+        answer_within_s=answer_within_s,
+    )
+    annotate(
+        kind=kind, result=ready.id, seed=seed, answer_status=ready.status, timings=ready.timings
+    )
+    request.app.state.metrics.observe_answer(kind, ready.status)
+    headers = {"content-encoding": "gzip", "vary": "Accept-Encoding"} if ready.gzipped else {}
+    return Response(ready.body, media_type="application/json", headers=headers)
+
+
 async def remember_answer(
     state: Any, kind: Kind, body: BaseModel, seed: int, answer: dict[str, Any]
 ) -> dict[str, Any]:
     """:func:`remember` outside a request (``state`` is the app's state): for jobs."""
-    request_json = body.model_dump(mode="json")
-    rid = result_id(kind, request_json, seed)
-    answer = {**answer, "id": rid}
-    summary = {
-        "character": request_json.get("character"),
-        "scene": request_json.get("scene"),
-        "status": answer.get("status"),
-        "seed": seed,
-        "keyframes": len(answer.get("keyframes", [])),
-        "duration": answer["keyframes"][-1]["t"] if answer.get("keyframes") else 0.0,
-    }
-    stored = StoredResult(kind, rid, {**request_json, "seed": seed}, answer)
+    stored, summary = stored_result(kind, body.model_dump(mode="json"), seed, answer)
+    answer = stored.response
     results: ResultStore = state.results
     await to_thread.run_sync(results.put, stored, summary)
     state.metrics.observe_answer(kind, str(answer.get("status")))

@@ -5,17 +5,17 @@ from __future__ import annotations
 from typing import Any
 
 from fastapi import APIRouter, Request
+from fastapi.responses import Response
 
-from service import compute
 from service.deps import RegistryDep
-from service.interactive import BUSY_RESPONSES, run_interactive
+from service.interactive import BUSY_RESPONSES
 from service.routes.results import (
     RESULT_RESPONSES,
     FormatQuery,
     OverlaysQuery,
     SceneQuery,
     draw_seed,
-    remember,
+    run_answer,
     stored_answer,
 )
 from service.schemas import ErrorBody, TwisterStepRequest, TwisterStepResponse
@@ -29,24 +29,22 @@ _ERRORS: dict[int | str, dict[str, Any]] = {
 GRACE_S = 15.0
 
 
-@router.post("/step", responses=_ERRORS)
-async def twister_step(body: TwisterStepRequest, request: Request) -> TwisterStepResponse:
+@router.post("/step", responses=_ERRORS, response_model=TwisterStepResponse)
+async def twister_step(body: TwisterStepRequest, request: Request) -> Response:
     """One move: ``create`` or ``break`` a limb's contact, or ``auto`` (the game picks).
 
     A move that cannot be made answers 200 with status INFEASIBLE and a ``failure`` saying
     why (nothing reachable, not balanced, collision); the state is then unchanged.
     """
     seed = body.seed if body.seed is not None else draw_seed()
-    answer = await run_interactive(
+    return await run_answer(
         request,
-        compute.run_twister_step,
-        body.model_dump_json(),
+        "step",
+        body,
         seed,
         budget_s=body.time_budget_s,
         answer_within_s=body.time_budget_s + GRACE_S,
     )
-    answer = await remember(request, "step", body, seed, answer)
-    return TwisterStepResponse.model_validate(answer)
 
 
 @router.get("/steps/{step_id}", responses=RESULT_RESPONSES, response_model=TwisterStepResponse)

@@ -4,10 +4,12 @@ answers and GLB downloads."""
 from __future__ import annotations
 
 import gzip
+from pathlib import Path
 from typing import Any
 
 import httpx
 
+from tests.live_process import server_process
 from tests.prometheus_text import metric_samples as _samples
 from tests.prometheus_text import sample_value as _value
 
@@ -80,3 +82,21 @@ def test_glb_downloads_still_work_gzipped_or_not(
     assert zipped.content == plain.content  # httpx undid the gzip
     assert plain.content[:4] == b"glTF"
     assert int.from_bytes(plain.content[8:12], "little") == len(plain.content)
+
+
+def test_metrics_with_two_uvicorn_workers_count_every_worker(tmp_path: Path) -> None:
+    """With ``--workers 2`` any scrape (whichever worker answers it) gives the whole service's
+    figures: prometheus-client's multiprocess mode, its directory made by the service."""
+    home = tmp_path / "home"
+    env = {"GECKO_WORKER_PROCESSES": "1", "GECKO_CHARACTERS": "humanoid"}
+    with server_process(home, workers=2, env=env) as server:
+        assert (home / "metrics" / str(server.pid)).is_dir()
+        labels = {"method": "GET", "route": "/v1/scenes/{scene_id}", "status": "404"}
+        for _ in range(12):  # a new connection each: spread over both workers
+            assert httpx.get(f"{server.url}/v1/scenes/no-such-scene", timeout=30).status_code == 404
+        for _ in range(6):  # a new connection each: whichever worker answers the scrape
+            samples = _samples(server.url)
+            assert _value(samples, "gecko_http_requests_total", **labels) == 12
+            assert _value(samples, "gecko_worker_processes") == 2  # 1 per worker, summed
+            assert _value(samples, "gecko_lane_slots", lane="interactive") == 2
+            assert _value(samples, "gecko_resident_memory_bytes", process="service") > 0

@@ -271,3 +271,36 @@ def test_capsule_mode_shapes_end_at_the_effectors(cid: str) -> None:
                 for p in points
             ]
             assert all(covered), limb.name
+
+
+@pytest.mark.skipif(not real_robot_ids(), reason="example-robot-data is not installed")
+@pytest.mark.parametrize("cid", ["talos", "hyq"])
+def test_capsule_mode_motion_geometry_is_the_urdf_meshes_hulls(cid: str) -> None:
+    """The whole-body motion's shapes are the URDF's own collision elements, meshes as their
+    convex hulls (what the independent audit checks), with self-collision pairs declared;
+    the planner's capsules stay in ``geometry``."""
+    import coal
+
+    c = get_character(cid)
+    motion = c.motion_geometry
+    assert motion is not c.geometry
+    names = [str(o.name) for o in motion.geometryObjects]
+    assert not any("_capsule_" in n or n.endswith("_plate") for n in names)
+    hulls = [o for o in motion.geometryObjects if isinstance(o.geometry, coal.ConvexBase)]
+    assert len(hulls) >= 9 and all(o.geometry.num_points >= 4 for o in hulls)
+    assert not any(isinstance(o.geometry, coal.BVHModelBase) for o in motion.geometryObjects)
+    assert len(motion.collisionPairs) > 0
+    # no declared pair touches in the reference posture, none is on one joint
+    data = c.model.createData()
+    pin.framesForwardKinematics(c.model, data, c.q_ref)
+    gdata = pin.GeometryData(motion)
+    pin.updateGeometryPlacements(c.model, data, motion, gdata)
+    assert not pin.computeCollisions(motion, gdata, False)
+    for pair in motion.collisionPairs:
+        first, second = motion.geometryObjects[pair.first], motion.geometryObjects[pair.second]
+        assert first.parentJoint != second.parentJoint
+
+
+def test_urdf_mode_motion_geometry_is_the_geometry() -> None:
+    c = get_character("humanoid")
+    assert c.motion_geometry is c.geometry

@@ -1,0 +1,83 @@
+"""The motion's collision queries on a real robot's mesh hulls: the shortcuts that keep them
+cheap (a shape's distance bounded by how far it moved since it was measured; pairs culled by
+bounding capsules) never change an answer."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from planner.character import get_character, real_robot_ids
+from planner.motion.checker import KeyframeChecker
+from planner.motion.clearance import PairBroadPhase, SceneDistances
+from tests.planner.contact.contact_helpers import scene
+
+pytestmark = pytest.mark.skipif(not real_robot_ids(), reason="example-robot-data is not installed")
+
+
+def _walk(character: object, steps: int, seed: int) -> list[np.ndarray]:
+    """Configurations drifting from the reference posture, lowered toward the floor."""
+    rng = np.random.default_rng(seed)
+    model = character.model  # type: ignore[attr-defined]
+    q = np.array(character.q_ref)  # type: ignore[attr-defined]
+    out = []
+    for _ in range(steps):
+        v = np.zeros(model.nv)
+        v[:3] = rng.normal(0.0, 0.01, 3) + np.array([0.0, 0.0, -0.004])
+        v[3:6] = rng.normal(0.0, 0.01, 3)
+        v[6:] = rng.normal(0.0, 0.05, model.nv - 6)
+        q = pin.integrate(model, q, v)
+        q[7:] = np.clip(q[7:], model.lowerPositionLimit[7:], model.upperPositionLimit[7:])
+        out.append(np.array(q))
+    return out
+
+
+@pytest.mark.parametrize("cid", ["talos", "hyq"])
+def test_settled_shapes_are_farther_than_the_threshold(cid: str) -> None:
+    character = get_character(cid)
+    model, geometry = character.model, character.motion_geometry
+    data, gdata = model.createData(), pin.GeometryData(geometry)
+    distances = SceneDistances(scene("flat").collision.bvh, (), geometry)
+    skipped = 0
+    for q in _walk(character, 60, 1):
+        pin.forwardKinematics(model, data, q)
+        pin.updateGeometryPlacements(model, data, geometry, gdata)
+        settled = distances.settled(gdata, 0.05)
+        for i, obj in enumerate(geometry.geometryObjects):
+            d = distances.nearest(obj.geometry, gdata.oMg[i])
+            if settled[i]:
+                skipped += 1
+                assert d > 0.05
+            elif i % 2 == 0:  # half the shapes measured: the others keep older references
+                distances.remember(i, d)
+    assert skipped > 0
+
+
+@pytest.mark.parametrize("cid", ["talos", "hyq"])
+def test_the_keyframe_check_equals_the_brute_force_one(cid: str) -> None:
+    character = get_character(cid)
+    model, geometry = character.model, character.motion_geometry
+    checker = KeyframeChecker(character, scene("flat").collision.bvh)
+    data, gdata = model.createData(), pin.GeometryData(geometry)
+    for request in gdata.distanceRequests:
+        request.enable_signed_distance = True
+    brute = SceneDistances(scene("flat").collision.bvh)
+    broad = PairBroadPhase(geometry)
+    for q in _walk(character, 40, 2):
+        check = checker.check(q, ())
+        pin.forwardKinematics(model, data, q)
+        pin.updateGeometryPlacements(model, data, geometry, gdata)
+        deepest = max(
+            0.0,
+            *(
+                -brute.nearest(o.geometry, gdata.oMg[i])
+                for i, o in enumerate(geometry.geometryObjects)
+            ),
+        )
+        assert check.scene_depth == pytest.approx(deepest, abs=1e-9)
+        pin.computeDistances(geometry, gdata)
+        depths = [-float(r.min_distance) for r in gdata.distanceResults]
+        assert check.self_depth == pytest.approx(max(0.0, *depths), abs=1e-9)
+        near = set(broad.near(gdata, 0.0))
+        assert all(k in near for k, d in enumerate(depths) if d >= 0.0)
