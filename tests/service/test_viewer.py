@@ -141,8 +141,10 @@ def test_timeline_lists_the_plans_phases(
 def test_viewer_draws_the_current_phases_equilibrium_region(
     browser: Any, gecko_url: str, live_results: dict[str, dict[str, Any]]
 ) -> None:
-    """Mid-phase, the outline on screen is a convex loop around the COM's (x, y): the
-    planned COM is in static equilibrium in a standing plan's phases."""
+    """Mid-phase, the outline on screen is a horizontal convex loop around the phase's
+    contact points (its static equilibrium region, the support polygon on flat ground), and
+    around the COM's (x, y) too when the plan's COM is quasi-static (a dynamic COM leaves
+    the support polygon in single support: its wrench, not its position, stays inside)."""
     plan = live_results["plan"]
     _open(browser, f"{gecko_url}/viewer?plan={plan['id']}")
     drawn = 0
@@ -157,12 +159,23 @@ def test_viewer_draws_the_current_phases_equilibrium_region(
         # glTF (x, y, z) -> Gecko (x, -z, y): the loop is horizontal in Gecko's world.
         loop = np.column_stack([outline[:, 0], -outline[:, 2]])
         assert np.ptp(outline[:, 1]) < 1e-6
-        com = _com_at(plan["com"], middle)
         edges = np.roll(loop, -1, axis=0) - loop
-        cross = edges[:, 0] * (com[1] - loop[:, 1]) - edges[:, 1] * (com[0] - loop[:, 0])
-        assert np.all(cross >= -1e-3) or np.all(cross <= 1e-3), (index, loop, com)
+        points = np.array([p for c in phase["contacts"] for p in c["points"]])
+        assert _inside(loop, points.mean(axis=0)), (index, loop, points)
+        turns = edges[:, 0] * np.roll(edges[:, 1], -1) - edges[:, 1] * np.roll(edges[:, 0], -1)
+        assert np.all(turns >= -1e-9) or np.all(turns <= 1e-9), (index, loop)  # convex
+        com = _com_at(plan["com"], middle)
+        if plan["report"]["com_method"] != "2pac+dynamic":
+            assert _inside(loop, com), (index, loop, com)
     assert drawn >= len(plan["phases"]) // 2
     assert _console_errors(browser) == []
+
+
+def _inside(loop: np.ndarray, point: np.ndarray) -> bool:
+    """Whether (x, y) of ``point`` lies in the convex loop (k, 2), 1 mm tolerance."""
+    edges = np.roll(loop, -1, axis=0) - loop
+    cross = edges[:, 0] * (point[1] - loop[:, 1]) - edges[:, 1] * (point[0] - loop[:, 0])
+    return bool(np.all(cross >= -1e-3) or np.all(cross <= 1e-3))
 
 
 def _com_at(segments: list[dict[str, Any]], t: float) -> np.ndarray:
