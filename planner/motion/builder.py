@@ -10,6 +10,7 @@ its wall-clock cap) cut the motion short.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -43,7 +44,8 @@ class MotionReport:
     com_error_max / com_error_p99 : m, keyframe COM against its curve. qp_fallbacks :
     control steps solved without the collision dampers (their QP had no solution).
     swings_raised : swing phases tracked again with a higher arc (2PAC 7.2), and flights
-    with their limbs tucked further.
+    with their limbs tucked further. abandoned : the build stopped at the first phase that
+    could not be played cleanly (``build_motion(abandon_unclean=True)``).
     """
 
     phases_animated: int
@@ -59,6 +61,7 @@ class MotionReport:
     qp_fallbacks: int
     swings_raised: int = 0
     colliding_times: tuple[float, ...] = field(default=())
+    abandoned: bool = False
 
     @property
     def complete(self) -> bool:
@@ -74,6 +77,7 @@ class MotionReport:
         reasons = []
         if self.phases_animated < self.phases_total:
             why = ": the budget ran out" if self.cut_short else ""
+            why = ": abandoned at the first unclean phase" if self.abandoned else why
             reasons.append(
                 f"keyframes for {self.phases_animated} of {self.phases_total} phases{why}"
             )
@@ -230,7 +234,13 @@ class _Targets:
         stance = tuple((c.limb, np.asarray(c.placement)) for c in phase.stance)
         if phase.flight is None and not phase.fast_com:
             return StepTargets(
-                stance, com, swing, phase.posture, k not in self.unguarded, phase.level_trunk
+                stance,
+                com,
+                swing,
+                phase.posture,
+                k not in self.unguarded,
+                phase.level_trunk,
+                rigid_stance=phase.rigid_stance,
             )
         # a fast COM: its target unsaturated, the trunk height aimed with it
         posture = np.array(phase.posture, dtype=np.float64)
@@ -246,6 +256,7 @@ class _Targets:
             exact_com=phase.flight is not None,
             com_reach=math.inf,
             rigid_stance=phase.rigid_stance,
+            root_bounded=False,
         )
 
 
@@ -273,6 +284,20 @@ def _swing_at_fault(segment: _Segment, shapes: frozenset[str]) -> bool:
     keyframe."""
     missed = segment.landing_error > tuning.LANDING_TOLERANCE
     return missed or any(c.colliding and c.shape in shapes for c in segment.checks)
+
+
+def _unclean(segment: _Segment, before: Keyframe | None) -> bool:
+    """Whether ``segment`` cannot be played as is: a keyframe collides, a stance contact
+    slips beyond ``HOLD_TOLERANCE``, or the root moves faster than ``MAX_ROOT_SPEED``
+    between two keyframes (from ``before``, the keyframe preceding the segment, if any)."""
+    if not all(c.valid for c in segment.checks):
+        return True
+    keys = ([before] if before is not None else []) + segment.keyframes
+    for a, b in itertools.pairwise(keys):
+        gap = float(np.linalg.norm(np.asarray(b.q[:3]) - np.asarray(a.q[:3])))
+        if gap > tuning.MAX_ROOT_SPEED * max(b.t - a.t, 1e-9):
+            return True
+    return False
 
 
 def _track_segment(
@@ -373,6 +398,7 @@ def build_motion(
     *,
     obstacles: Sequence[tuple[Any, Any]] = (),
     until: Termination = never,
+    abandon_unclean: bool = False,
 ) -> BuiltMotion:
     """Keyframes of ``spec`` for ``character`` in the scene ``scene_bvh`` (coal BVH), each
     checked. A swing phase whose keyframes collide, or whose effector does not reach its
@@ -382,7 +408,10 @@ def build_motion(
     (a retried swing or flight polls again; a plan's work budget charges each poll): when it
     fires, the keyframes so far are returned and the report says ``cut_short``. With
     ``spec.q_end``, a motion not cut short ends exactly there (its last ``END_BLEND_S``
-    seconds blended into it, and checked again)."""
+    seconds blended into it, and checked again). With ``abandon_unclean`` (a trial build
+    that a caller would refuse), the build stops after the first phase whose best attempt
+    collides, lets a stance contact slip, or moves the root faster than
+    ``MAX_ROOT_SPEED`` between two keyframes; the report says ``abandoned``."""
     tracker = WholeBodyTracker(character, scene_bvh, obstacles)
     checker = KeyframeChecker(character, scene_bvh, obstacles)
     targets = _Targets(character, spec)
@@ -405,6 +434,7 @@ def build_motion(
     segments: list[_Segment] = []
     previous: float | None = None
     retried = 0
+    abandoned = False
     for times in groups:
         k = targets.phase_index(times[0])
         swing = spec.phases[k].swing
@@ -447,16 +477,20 @@ def build_motion(
             targets.lifts[k] = best_attempt[0]
             if best_attempt[1]:
                 targets.unguarded.discard(k)
+        last_key = segments[-1].keyframes[-1] if segments and segments[-1].keyframes else None
         segments.append(best)
         q = best.q
         previous = times[-1]
         if best.cut_short:
             break
+        if abandon_unclean and _unclean(best, last_key):
+            abandoned = True
+            break
     keyframes = [key for s in segments for key in s.keyframes]
     checks = [c for s in segments for c in s.checks]
     com_errors = [e for s in segments for e in s.com_errors]
     cut_short = any(s.cut_short for s in segments)
-    if spec.q_end is not None and not cut_short:
+    if spec.q_end is not None and not cut_short and not abandoned:
         q = _blend_into(checker, targets, keyframes, checks, com_errors, spec.q_end)
     errors = np.asarray(com_errors)
     colliding = tuple(key.t for key, c in zip(keyframes, checks, strict=True) if c.colliding)
@@ -476,6 +510,7 @@ def build_motion(
         qp_fallbacks=tracker.fallbacks,
         swings_raised=retried,
         colliding_times=colliding,
+        abandoned=abandoned,
     )
     phases = tuple(Phase(t0=p.t0, t1=p.t1, contacts=p.stance) for p in spec.phases)
     com_segments = tuple(

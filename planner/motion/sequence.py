@@ -352,7 +352,11 @@ def sequence_motion(
         character, data, states, timing, swing_durations(character, states, speed)
     )
 
-    def build(curve: trajectory.PiecewiseBezier, times: FloatArray) -> BuiltMotion:
+    def build(
+        curve: trajectory.PiecewiseBezier, times: FloatArray, trial: bool = False
+    ) -> BuiltMotion:
+        """The whole-body motion along ``curve``; a ``trial`` (a dynamic curve) holds its
+        stance contacts rigidly and is abandoned at its first unclean phase."""
         spec_phases = []
         for k, state in enumerate(states):
             swing = None
@@ -365,10 +369,19 @@ def sequence_motion(
             aim = states[min(k + 1, len(states) - 1)]
             posture = natural_posture(character, np.asarray(aim.q), aim.limbs)
             spec_phases.append(
-                MotionPhase(float(times[k]), float(times[k + 1]), state.contacts, posture, swing)
+                MotionPhase(
+                    float(times[k]),
+                    float(times[k + 1]),
+                    state.contacts,
+                    posture,
+                    swing,
+                    rigid_stance=trial,
+                )
             )
         spec = MotionSpec(np.asarray(states[0].q), tuple(spec_phases), curve, rate)
-        return build_motion(character, scene_bvh, spec, obstacles=obstacles, until=until)
+        return build_motion(
+            character, scene_bvh, spec, obstacles=obstacles, until=until, abandon_unclean=trial
+        )
 
     built: BuiltMotion | None = None
     slowdown: float | None = None
@@ -381,7 +394,9 @@ def sequence_motion(
         if dynamic is None:
             dynamic_refused = f"no curve passes Eq. 1 up to {used:g} times the brisk durations"
             break
-        candidate = build(dynamic.curve, np.asarray(dynamic.phase_times, dtype=np.float64))
+        candidate = build(
+            dynamic.curve, np.asarray(dynamic.phase_times, dtype=np.float64), trial=True
+        )
         unplayable = _unplayable(candidate)
         if unplayable is None or candidate.report.cut_short:
             built, slowdown = candidate, used

@@ -67,6 +67,7 @@ class StepTargets:
     exact_com: bool = False
     com_reach: float = tuning.COM_MAX_ERROR
     rigid_stance: bool = False
+    root_bounded: bool = True
 
 
 def effector_geometries(character: Character) -> dict[str, frozenset[int]]:
@@ -88,14 +89,19 @@ def effector_geometries(character: Character) -> dict[str, frozenset[int]]:
     return out
 
 
-def speed_limits(model: Any) -> FloatArray:
+def speed_limits(model: Any, root_bounded: bool = False) -> FloatArray:
     """(nv,) rad/s: each joint's URDF velocity limit capped at ``MAX_JOINT_SPEED`` (joints
-    without a limit get the cap); the free-flyer root is left unbounded."""
+    without a limit get the cap). The free-flyer root (its local frame) is left unbounded,
+    or with ``root_bounded`` held to ``ROOT_LINEAR_SPEED`` m/s and ``ROOT_ANGULAR_SPEED``
+    rad/s per axis."""
     limits = np.array(model.velocityLimit, dtype=np.float64)
     root = int(model.joints[1].nv) if model.njoints > 1 and model.joints[1].nq == 7 else 0
     joints = limits[root:]
     joints[~(joints > 0)] = tuning.MAX_JOINT_SPEED
     limits[root:] = np.minimum(joints, tuning.MAX_JOINT_SPEED)
+    if root:
+        limits[:3] = tuning.ROOT_LINEAR_SPEED if root_bounded else np.inf
+        limits[3:6] = tuning.ROOT_ANGULAR_SPEED if root_bounded else np.inf
     return limits
 
 
@@ -153,9 +159,13 @@ class WholeBodyTracker:
             )
         self.scene = SceneClearance(model, character.motion_geometry, scene_bvh, obstacles)
         self.self_clearance = SelfClearance(model, character.motion_geometry)
-        self.limits = [
+        self.free_limits = [
             ConfigurationLimit(model),
             VelocityLimit(model, speed_limits(model)),
+        ]
+        self.limits = [
+            ConfigurationLimit(model),
+            VelocityLimit(model, speed_limits(model, root_bounded=True)),
         ]
         self.configuration = Configuration(model, self.data, pin.neutral(model), copy_data=False)
         self.fallbacks = 0
@@ -275,14 +285,15 @@ class WholeBodyTracker:
         tasks.append(self.posture_task)
         self.scene.set_phase(frozenset(skipped), light)
         rigid = [limb for limb, _ in targets.stance] if targets.rigid_stance else []
+        bounds = self.limits if targets.root_bounded else self.free_limits
         attempts: list[tuple[list[Any], bool]] = [
-            ([*self.limits, self.scene, self.self_clearance], True),
-            (self.limits, True),
+            ([*bounds, self.scene, self.self_clearance], True),
+            (bounds, True),
         ]
         if rigid:
             attempts += [
-                ([*self.limits, self.scene, self.self_clearance], False),
-                (self.limits, False),
+                ([*bounds, self.scene, self.self_clearance], False),
+                (bounds, False),
             ]
         for limits, hard in attempts:
             velocity = self._solve(tasks, dt, limits, rigid if hard else [])
