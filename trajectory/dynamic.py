@@ -43,7 +43,11 @@ class DynamicSettings:
     iterations : linearisation rounds at most. margin : smallest generator weight, in body
         weights, while solving (robustness to the linearisation and between samples).
     acceleration_weight : cost of the squared acceleration (s^4 per phase second).
-    tracking_weight : cost of the squared distance to the reference curve (1/m^2).
+    tracking_weight : cost of the squared horizontal distance to the reference curve
+        (1/m^2). vertical_tracking_weight : the same for the height. The reference's
+        height is one a body can stand at, the kinematic polytopes allow more than legs
+        with the arms down give: at the horizontal weight a walk's curve stayed 4.5 cm
+        above what the legs reach in double support, and the body raised an arm to follow.
     force_weight : cost of the squared generator weights (spreads the force over contacts).
     """
 
@@ -53,6 +57,7 @@ class DynamicSettings:
     margin: float = 1e-3
     acceleration_weight: float = 1.0
     tracking_weight: float = 10.0
+    vertical_tracking_weight: float = 1e4
     force_weight: float = 1e-2
 
     def __post_init__(self) -> None:
@@ -362,18 +367,21 @@ def _cost(
         duration = times[j + 1] - times[j]
         share = duration / samples
         acc = basis2 / duration**2
-        gram = settings.acceleration_weight * share * acc.T @ acc
+        smooth = settings.acceleration_weight * share * acc.T @ acc
         ref = None if targets is None else targets[j]
-        if ref is not None:
-            gram = gram + settings.tracking_weight * share * basis.T @ basis
         cols = np.array([layout.point(j, i) for i in range(basis.shape[1])])
         for axis in range(3):
             idx = cols + axis
+            gram = smooth
+            if ref is not None:
+                weight = (
+                    settings.vertical_tracking_weight if axis == 2 else settings.tracking_weight
+                )
+                gram = smooth + weight * share * basis.T @ basis
+                q[idx] -= weight * share * basis.T @ ref[:, axis]
             ri.append(np.repeat(idx, idx.size))
             ci.append(np.tile(idx, idx.size))
             data.append(gram.ravel())
-            if ref is not None:
-                q[idx] -= settings.tracking_weight * share * basis.T @ ref[:, axis]
     weights = np.arange(layout.n_curve, n)
     ri.append(weights)
     ci.append(weights)

@@ -4,17 +4,19 @@ Each step solves, over the configuration step ``dq`` (tangent space),
 
     min  sum of weighted task errors after the step  +  DAMPING |dq|^2
     s.t. joint position limits, joint speeds <= min(URDF limit, MAX_JOINT_SPEED),
+         the root's speed <= ROOT_LINEAR_SPEED, ROOT_ANGULAR_SPEED per axis of its frame
+         (outside a jump's fast phases, ``StepTargets.root_bounded``),
          collision dampers against the scene and between body parts (``clearance``)
 
 with the tasks, by cost: stance contacts held (dominant), the COM on its curve, the swing
 effector on its arc, the trunk's roll and pitch at the planned orientation, and a posture
 pull toward the phase's planned configuration. With ``StepTargets.rigid_stance`` (a jump's
-stance phases, where the COM moves fast) the stance contacts are equality constraints
-instead, ``J_c dq = -e_c`` (position for a point contact, full placement for a patch): the
-COM then lags its curve rather than drag a contact. The QP backend is daqp through
-qpsolvers. When the QP has no solution (a damper that cannot be met within the speed
-limits), the step is retried without the dampers, then (rigid stance) with the contacts
-back in the cost, then skipped (the body holds still).
+stance phases, where the COM moves fast, and a plan's dynamic COM) the stance contacts are
+equality constraints instead, ``J_c dq = -e_c`` (position for a point contact, full
+placement for a patch): the COM then lags its curve rather than drag a contact. The QP
+backend is daqp through qpsolvers. When the QP has no solution (a damper that cannot be met
+within the speed limits), the step is retried without the dampers, then (rigid stance) with
+the contacts back in the cost, then skipped (the body holds still).
 """
 
 from __future__ import annotations

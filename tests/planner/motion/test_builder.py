@@ -8,6 +8,7 @@ import dataclasses
 import itertools
 
 import numpy as np
+import pinocchio as pin
 
 from planner.contact.checks import make_contact
 from planner.contact.context import make_context
@@ -89,3 +90,65 @@ def test_a_motion_with_an_end_configuration_ends_exactly_there() -> None:
     early = [k for k in motion.keyframes if k.t < 1.0 - tuning.END_BLEND_S - 1e-9]
     for a, b in zip(early, tracked.keyframes, strict=False):
         np.testing.assert_array_equal(a.q, b.q)  # only the last END_BLEND_S seconds change
+
+
+def test_the_root_moves_no_faster_than_its_bound() -> None:
+    """A COM asked to dart 0.4 m sideways in 0.2 s (2 m/s): outside jumps the root moves at
+    most ``ROOT_LINEAR_SPEED`` along each axis of its own frame, so the COM lags its curve
+    instead of the pelvis being thrown."""
+    character, data = character_and_data("humanoid")
+    ctx = make_context(scene("flat"), character, data)
+    q = np.array(character.q_ref)
+    feet = tuple(make_contact(ctx, name, q, 0) for name in ("left_foot", "right_foot"))
+    c0 = com_position(character.model, q)
+    c1 = c0 + np.array([0.0, 0.4, 0.0])
+    curve = PiecewiseBezier((BezierCurve(np.stack([c0, c0, c1, c1]), 0.0, 0.2),))
+    spec = MotionSpec(q, (MotionPhase(0.0, 0.2, feet, q),), curve, 30.0)
+    motion = build_motion(character, ctx.scene.collision.bvh, spec)
+    model = character.model
+    fastest = max(
+        float(np.abs(np.asarray(pin.difference(model, a.q, b.q))[:3]).max()) / (b.t - a.t)
+        for a, b in itertools.pairwise(motion.keyframes)
+    )  # along an axis of the root's frame, m/s
+    assert fastest <= tuning.ROOT_LINEAR_SPEED * 1.02
+    assert fastest >= tuning.ROOT_LINEAR_SPEED * 0.95  # the bound, not the tasks, decided
+    assert motion.report.com_error_max > 0.1  # the COM lagged its curve
+    free = speed_limits(model)
+    bounded = speed_limits(model, root_bounded=True)
+    assert np.all(np.isinf(free[:6])) and np.all(np.isfinite(bounded[:6]))
+    np.testing.assert_array_equal(free[6:], bounded[6:])
+
+
+def _slipping_spec(offset: float) -> tuple[object, MotionSpec]:
+    """Three squatting phases; from the second on, the right foot's contact lies ``offset``
+    m beside the foot (a contact the body cannot hold without sliding its foot)."""
+    ctx, spec = _squat_spec(drop=0.05, duration=0.9)
+    first = spec.phases[0]
+    moved = first.stance[1].placement.copy()
+    moved[1, 3] -= offset
+    shifted = (first.stance[0], dataclasses.replace(first.stance[1], placement=moved))
+    phases = (
+        dataclasses.replace(first, t1=0.3),
+        dataclasses.replace(first, t0=0.3, t1=0.6, stance=shifted),
+        dataclasses.replace(first, t0=0.6, t1=0.9, stance=shifted),
+    )
+    return ctx, dataclasses.replace(spec, phases=phases)
+
+
+def test_a_trial_build_is_abandoned_at_its_first_unclean_phase() -> None:
+    """``abandon_unclean``: the build stops after the first phase a caller would refuse
+    (here a contact it cannot hold), says so, and costs no more keyframes; without it every
+    phase is animated and the slip is reported."""
+    ctx, spec = _slipping_spec(offset=0.3)
+    bvh = ctx.scene.collision.bvh  # type: ignore[attr-defined]
+    whole = build_motion(ctx.character, bvh, spec)  # type: ignore[attr-defined]
+    assert whole.report.phases_animated == 3 and not whole.report.abandoned
+    assert whole.report.max_hold_error > tuning.HOLD_TOLERANCE
+    trial = build_motion(ctx.character, bvh, spec, abandon_unclean=True)  # type: ignore[attr-defined]
+    assert trial.report.abandoned and not trial.report.cut_short
+    assert trial.report.phases_animated == 1
+    assert trial.keyframes[-1].t <= 0.6 + 1e-9
+    shortfall = trial.report.shortfall()
+    assert shortfall is not None and "abandoned" in shortfall and "slips" in shortfall
+    clean = build_motion(ctx.character, bvh, _squat_spec(0.05, 0.9)[1], abandon_unclean=True)  # type: ignore[attr-defined]
+    assert not clean.report.abandoned and clean.report.complete
