@@ -120,7 +120,8 @@ class MotionReport:
 class BuiltMotion:
     """Phases, COM segments and keyframes of a motion, with its report. ``end`` is the
     configuration (nq,) the motion ends in; ``swing_lifts`` the arc height (m) each phase's
-    swing was tracked with (0 without a swing)."""
+    swing was tracked with (0 without a swing); ``checks`` and ``com_errors`` (m) what the
+    checker said of each keyframe (a later build may resume from this one's keyframes)."""
 
     phases: tuple[Phase, ...]
     com: tuple[ComSegment, ...]
@@ -128,6 +129,8 @@ class BuiltMotion:
     report: MotionReport
     end: FloatArray
     swing_lifts: tuple[float, ...] = ()
+    checks: tuple[KeyframeCheck, ...] = ()
+    com_errors: tuple[float, ...] = ()
 
 
 def keyframe_grid(t0: float, t1: float, rate: float) -> FloatArray:
@@ -288,9 +291,12 @@ def _swing_at_fault(segment: _Segment, shapes: frozenset[str]) -> bool:
 
 def _unclean(segment: _Segment, before: Keyframe | None) -> bool:
     """Whether ``segment`` cannot be played as is: a keyframe collides, a stance contact
-    slips beyond ``HOLD_TOLERANCE``, or the root moves faster than ``MAX_ROOT_SPEED``
-    between two keyframes (from ``before``, the keyframe preceding the segment, if any)."""
+    slips beyond ``HOLD_TOLERANCE``, the COM lags its curve by more than
+    ``TRIAL_COM_TOLERANCE``, or the root moves faster than ``MAX_ROOT_SPEED`` between two
+    keyframes (from ``before``, the keyframe preceding the segment, if any)."""
     if not all(c.valid for c in segment.checks):
+        return True
+    if max(segment.com_errors, default=0.0) > tuning.TRIAL_COM_TOLERANCE:
         return True
     keys = ([before] if before is not None else []) + segment.keyframes
     for a, b in itertools.pairwise(keys):
@@ -399,6 +405,7 @@ def build_motion(
     obstacles: Sequence[tuple[Any, Any]] = (),
     until: Termination = never,
     abandon_unclean: bool = False,
+    resume: tuple[BuiltMotion, int] | None = None,
 ) -> BuiltMotion:
     """Keyframes of ``spec`` for ``character`` in the scene ``scene_bvh`` (coal BVH), each
     checked. A swing phase whose keyframes collide, or whose effector does not reach its
@@ -410,12 +417,37 @@ def build_motion(
     ``spec.q_end``, a motion not cut short ends exactly there (its last ``END_BLEND_S``
     seconds blended into it, and checked again). With ``abandon_unclean`` (a trial build
     that a caller would refuse), the build stops after the first phase whose best attempt
-    collides, lets a stance contact slip, or moves the root faster than
-    ``MAX_ROOT_SPEED`` between two keyframes; the report says ``abandoned``."""
+    collides, lets a stance contact slip, lags the COM curve by more than
+    ``TRIAL_COM_TOLERANCE`` or moves the root faster than ``MAX_ROOT_SPEED`` between two
+    keyframes; the report says ``abandoned``. With
+    ``resume`` (an earlier build, a phase index p), the earlier build's keyframes of the
+    phases before p are kept as they are (``spec``'s phases and COM before p must be the
+    ones it was built with) and tracking goes on from the last of them, the rest of the
+    keyframes spaced evenly from there; its QP fallbacks are counted in (at most)."""
     tracker = WholeBodyTracker(character, scene_bvh, obstacles)
     checker = KeyframeChecker(character, scene_bvh, obstacles)
     targets = _Targets(character, spec)
-    grid = keyframe_grid(spec.phases[0].t0, spec.phases[-1].t1, spec.rate).tolist()
+    kept = _Segment([], [], [], np.array(spec.q_start, dtype=np.float64), 0.0)
+    if resume is not None:
+        earlier, first = resume
+        for key, check, error in zip(
+            earlier.keyframes, earlier.checks, earlier.com_errors, strict=True
+        ):
+            if targets.phase_index(key.t) >= first:
+                break
+            kept.keyframes.append(key)
+            kept.checks.append(check)
+            kept.com_errors.append(error)
+        for k in range(min(first, len(earlier.swing_lifts))):
+            if spec.phases[k].swing is not None:
+                targets.lifts[k] = earlier.swing_lifts[k]
+        tracker.fallbacks = earlier.report.qp_fallbacks
+    if kept.keyframes:
+        kept.q = np.array(kept.keyframes[-1].q, dtype=np.float64)
+        t_kept = kept.keyframes[-1].t
+        grid = keyframe_grid(t_kept, spec.phases[-1].t1, spec.rate).tolist()[1:]
+    else:
+        grid = keyframe_grid(spec.phases[0].t0, spec.phases[-1].t1, spec.rate).tolist()
     groups: list[list[float]] = []
     for t in grid:
         k = targets.phase_index(t)
@@ -430,10 +462,14 @@ def build_motion(
         )
         for limb in character.limbs
     }
-    q = np.array(spec.q_start, dtype=np.float64)
-    segments: list[_Segment] = []
-    previous: float | None = None
-    retried = 0
+    q = kept.q
+    segments: list[_Segment] = [kept] if kept.keyframes else []
+    previous: float | None = kept.keyframes[-1].t if kept.keyframes else None
+    retried = sum(
+        1
+        for k, lift in targets.lifts.items()
+        if (swing := spec.phases[k].swing) is not None and lift > swing.lift
+    )
     abandoned = False
     for times in groups:
         k = targets.phase_index(times[0])
@@ -521,4 +557,13 @@ def build_motion(
         0.0 if p.swing is None else targets.lifts.get(k, p.swing.lift)
         for k, p in enumerate(spec.phases)
     )
-    return BuiltMotion(phases, com_segments, tuple(keyframes), report, q, swing_lifts)
+    return BuiltMotion(
+        phases,
+        com_segments,
+        tuple(keyframes),
+        report,
+        q,
+        swing_lifts,
+        tuple(checks),
+        tuple(com_errors),
+    )

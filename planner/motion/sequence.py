@@ -229,31 +229,50 @@ def dynamic_com(
     states: Sequence[ContactState],
     reference: trajectory.ComTrajectory,
     speed: float = 1.0,
-    slowdowns: Sequence[float] = tuning.DYNAMIC_SLOWDOWNS,
-) -> tuple[trajectory.DynamicCom | None, float]:
+    factors: Sequence[float] | None = None,
+    kept: trajectory.PiecewiseBezier | None = None,
+    levels: Sequence[float] = tuning.DYNAMIC_SLOWDOWNS,
+) -> tuple[trajectory.DynamicCom | None, list[float]]:
     """A COM through ``states`` whose wrench lies in each phase's contact cone (Eq. 1) at
     the collocation times of ``trajectory.dynamic_com``, near 2PAC's ``reference`` curve,
-    each phase lasting :func:`dynamic_durations` times the first of ``slowdowns`` that
-    succeeds. Returns (the curve or None, the slow-down used or the last tried)."""
+    phase j lasting :func:`dynamic_durations` times ``factors[j]`` (default: the first of
+    ``levels`` for every phase). ``kept`` : the curve's first segments, kept as they are
+    (an earlier answer's). When no curve passes, the phases after the kept ones are slowed
+    to the next of ``levels`` and the QP solved again. Returns (the curve or None, the
+    factors used or the last tried)."""
     phases_tr = [contact_phase(character, s) for s in states]
     kinematics = [phase_kinematics(data, s) for s in states]
     durations = np.asarray(dynamic_durations(character, states, speed))
     start = com_position(character.model, states[0].q)
     end = com_position(character.model, states[-1].q)
-    slowdown = 0.0
-    for slowdown in slowdowns:
+    used = list(factors) if factors is not None else [levels[0]] * len(states)
+    first = 0 if kept is None else len(kept.segments)
+    while True:
         found = trajectory.dynamic_com(
             phases_tr,
-            list(durations * slowdown),
+            list(durations * np.asarray(used)),
             start,
             end,
             kinematics=kinematics,
             reference=reference.curve,
             reference_times=list(reference.phase_times),
+            fixed=kept,
         )
         if found is not None and found.valid:
-            return found, slowdown
-    return None, slowdown
+            return found, used
+        slower = _slower(used, first, levels)
+        if slower is None:
+            return None, used
+        used = slower
+
+
+def _slower(factors: Sequence[float], first: int, levels: Sequence[float]) -> list[float] | None:
+    """``factors`` with phase ``first`` and every later phase slowed to at least the level
+    after ``factors[first]``; None past the last of ``levels``."""
+    above = [level for level in levels if level > factors[first] + 1e-12]
+    if not above:
+        return None
+    return [f if j < first else max(f, above[0]) for j, f in enumerate(factors)]
 
 
 def timed_com(
@@ -295,9 +314,14 @@ def timed_com(
 
 
 def _unplayable(built: BuiltMotion) -> str | None:
-    """Why a motion cannot be played as is (its builder's shortfall, or the root moving
-    faster than ``tuning.MAX_ROOT_SPEED`` between two keyframes), None when it can."""
+    """Why a motion cannot be played as is (its builder's shortfall, its COM lagging the
+    curve by more than ``tuning.TRIAL_COM_TOLERANCE``, or the root moving faster than
+    ``tuning.MAX_ROOT_SPEED`` between two keyframes), None when it can."""
     why = built.report.shortfall()
+    lag = built.report.com_error_max
+    if lag > tuning.TRIAL_COM_TOLERANCE:
+        lags = f"the COM lags its curve by {lag * 1000:.0f} mm"
+        why = lags if why is None else f"{why}; {lags}"
     if why is not None:
         return why
     roots = np.array([key.q[:3] for key in built.keyframes]).reshape(-1, 3)
@@ -353,10 +377,14 @@ def sequence_motion(
     )
 
     def build(
-        curve: trajectory.PiecewiseBezier, times: FloatArray, trial: bool = False
+        curve: trajectory.PiecewiseBezier,
+        times: FloatArray,
+        trial: bool = False,
+        resume: tuple[BuiltMotion, int] | None = None,
     ) -> BuiltMotion:
         """The whole-body motion along ``curve``; a ``trial`` (a dynamic curve) holds its
-        stance contacts rigidly and is abandoned at its first unclean phase."""
+        stance contacts rigidly and is abandoned at its first unclean phase; ``resume``
+        keeps an earlier build's keyframes before a phase (``build_motion``)."""
         spec_phases = []
         for k, state in enumerate(states):
             swing = None
@@ -380,32 +408,56 @@ def sequence_motion(
             )
         spec = MotionSpec(np.asarray(states[0].q), tuple(spec_phases), curve, rate)
         return build_motion(
-            character, scene_bvh, spec, obstacles=obstacles, until=until, abandon_unclean=trial
+            character,
+            scene_bvh,
+            spec,
+            obstacles=obstacles,
+            until=until,
+            abandon_unclean=trial,
+            resume=resume,
         )
 
     built: BuiltMotion | None = None
-    slowdown: float | None = None
+    factors: list[float] | None = None
     dynamic_refused: str | None = None
-    slowdowns = list(tuning.DYNAMIC_SLOWDOWNS) if len(states) >= 2 else []
-    for _ in range(tuning.DYNAMIC_MAX_BUILDS):
-        if not slowdowns:
-            break
-        dynamic, used = dynamic_com(character, data, states, com_trajectory, speed, slowdowns)
-        if dynamic is None:
-            dynamic_refused = f"no curve passes Eq. 1 up to {used:g} times the brisk durations"
-            break
-        candidate = build(
-            dynamic.curve, np.asarray(dynamic.phase_times, dtype=np.float64), trial=True
+    # trial builds: a dynamic curve at brisk durations; where the body cannot follow it,
+    # the phases from the one before the first unclean phase on are slowed to the next
+    # level, the curve and keyframes before them kept (a fallback per window)
+    earlier: tuple[trajectory.DynamicCom, BuiltMotion] | None = None
+    levels = tuning.DYNAMIC_SLOWDOWNS
+    trials: list[str] = []  # why each refused trial was refused
+    first = 0
+    trial: list[float] | None = None
+    for _ in range(tuning.DYNAMIC_MAX_BUILDS if len(states) >= 2 else 0):
+        kept = None
+        if earlier is not None and first > 0:
+            kept = trajectory.PiecewiseBezier(earlier[0].curve.segments[:first])
+        dynamic, trial = dynamic_com(
+            character, data, states, com_trajectory, speed, trial, kept, levels
         )
+        if dynamic is None:
+            dynamic_refused = (
+                f"no curve passes Eq. 1 up to {max(trial):g} times the brisk durations"
+            )
+            trials.append(dynamic_refused)
+            break
+        times_d = np.asarray(dynamic.phase_times, dtype=np.float64)
+        resume = (earlier[1], first) if earlier is not None and first > 0 else None
+        candidate = build(dynamic.curve, times_d, trial=True, resume=resume)
         unplayable = _unplayable(candidate)
         if unplayable is None or candidate.report.cut_short:
-            built, slowdown = candidate, used
-            curve, times = dynamic.curve, np.asarray(dynamic.phase_times, dtype=np.float64)
+            built, factors = candidate, trial
+            curve, times = dynamic.curve, times_d
             methods = ("2pac+dynamic",) * len(states)
             break
-        # the body could not follow this curve cleanly: a slower one, then 2PAC's
-        dynamic_refused = f"at {used:g} times the brisk durations: {unplayable}"
-        slowdowns = [s for s in slowdowns if s > used]
+        bad = max(0, candidate.report.phases_animated - 1)
+        dynamic_refused = f"phase {bad} at {trial[bad]:g} times the brisk durations: {unplayable}"
+        trials.append(dynamic_refused)
+        first = max(0, bad - 1)
+        slower = _slower(trial, first, levels)
+        if slower is None:
+            break
+        earlier, trial = (dynamic, candidate), slower
     if built is None:
         curve = com_trajectory.curve
         times = np.asarray(com_trajectory.phase_times, dtype=np.float64)
@@ -415,8 +467,10 @@ def sequence_motion(
     report: dict[str, object] = {
         **built.report.as_dict(),
         "com_method": _com_method(methods),
-        "dynamic_slowdown": slowdown,
-        "dynamic_refused": None if slowdown is not None else dynamic_refused,
+        "dynamic_slowdown": None if factors is None else max(factors),
+        "dynamic_slowdowns": factors,
+        "dynamic_trials": trials,
+        "dynamic_refused": None if factors is not None else dynamic_refused,
         "quasi_static_feasible": bool(com_trajectory.quasi_static_feasible),
         "transition_slack": [float(t.slack) for t in com_trajectory.transitions],
         "phase_methods": list(methods),

@@ -117,6 +117,10 @@ SELF_PENETRATION_TOLERANCE = 0.005
 HOLD_TOLERANCE = 0.005
 """m, a stance contact further than this from where it was placed has slipped."""
 
+TRIAL_COM_TOLERANCE = 0.02
+"""m, a dynamic COM curve whose keyframe COM lags it by more than this somewhere is refused
+(the body cannot follow it: the hexapod's wall at brisk durations lagged 45 mm, p99)."""
+
 # --- swing ------------------------------------------------------------------------------------
 SWING_LIFTS = (0.08, 0.16, 0.24)
 """m, swing arc heights above the chord, tried in turn when the lower one collides or does
@@ -205,15 +209,18 @@ DYNAMIC_END_S = 0.3
 to rest (not scaled by ``DYNAMIC_SLOWDOWNS`` nor divided by ``options.speed``)."""
 
 DYNAMIC_SLOWDOWNS = (0.75, 1.0, 1.5)
-"""Factors on the durations above, tried in turn until the dynamic COM QP finds a curve
-that passes Eq. 1 at every collocation time and the body follows it cleanly; beyond the
-last, the plan keeps 2PAC's quasi-static curve (``com_method`` says which). Measured on
-seed 1: the flat humanoid walk plays at 0.75 (0.51 m/s), its stairs at 1.0 (0.34 m/s,
-their swings at 0.75 scrape a tread nose)."""
+"""Factors on the durations above, per phase. A plan first tries the first for every phase;
+where the dynamic COM QP finds no curve passing Eq. 1 at every collocation time, or where
+the body cannot follow the curve cleanly, the phases from the one before the first failing
+phase on are slowed to the next factor, the curve and the keyframes before them kept (a
+fallback per window); beyond the last, the plan keeps 2PAC's quasi-static curve
+(``com_method`` says which). Measured on seed 1: the flat humanoid walk plays at 0.75 (0.51
+m/s), its stairs at 0.75 for four phases and 1.0 after (0.36 m/s)."""
 
-DYNAMIC_MAX_BUILDS = 3
-"""Whole-body builds tried on dynamic curves before a plan keeps 2PAC's curve: each costs
-about as much as the plan's keyframes."""
+DYNAMIC_MAX_BUILDS = 6
+"""Trial builds of dynamic curves before a plan keeps 2PAC's curve. Each is abandoned at
+its first unclean phase and the next resumes from the phase before it, so together they
+cost about one build of the plan's keyframes plus the failing phases."""
 
 MAX_ROOT_SPEED = 1.4
 """m/s, the fastest the root may move between two keyframes of a plan's dynamic motion (the

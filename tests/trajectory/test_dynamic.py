@@ -168,3 +168,25 @@ def test_the_height_follows_the_reference_closer_than_the_path() -> None:
     )
     assert flat is not None
     assert float(np.abs(flat.curve(samples)[:, 2] - reference(samples)[:, 2]).max()) > 0.015
+
+
+def test_kept_phases_stay_bit_for_bit_and_the_rest_joins_them_c2() -> None:
+    """``fixed``: a walk re-timed from its fourth phase on (slower there) keeps the first
+    three segments of the earlier answer exactly, joins them C2 and passes Eq. 1."""
+    phases, durations, start, end = _walk(7, 0.3, 0.1)
+    first = trajectory.dynamic_com(phases, durations, start, end)
+    assert first is not None and first.valid
+    slower = durations[:3] + [1.5 * x for x in durations[3:]]
+    kept = trajectory.PiecewiseBezier(first.curve.segments[:3])
+    again = trajectory.dynamic_com(phases, slower, start, end, fixed=kept)
+    assert again is not None and again.valid
+    for a, b in zip(first.curve.segments[:3], again.curve.segments[:3], strict=True):
+        np.testing.assert_array_equal(a.control_points, b.control_points)
+    a, b = again.curve.segments[2], again.curve.segments[3]
+    for order in (0, 1, 2):
+        left = a.derivative(order)(a.t1) if order else a(a.t1)
+        right = b.derivative(order)(b.t0) if order else b(b.t0)
+        np.testing.assert_allclose(left, right, atol=1e-5 * (1 + np.abs(left).max()))
+    np.testing.assert_allclose(again.phase_times, np.concatenate([[0], np.cumsum(slower)]))
+    with pytest.raises(ValueError, match="fixed"):
+        trajectory.dynamic_com(phases, [2.0 * x for x in durations], start, end, fixed=kept)

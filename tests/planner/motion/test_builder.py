@@ -152,3 +152,23 @@ def test_a_trial_build_is_abandoned_at_its_first_unclean_phase() -> None:
     assert shortfall is not None and "abandoned" in shortfall and "slips" in shortfall
     clean = build_motion(ctx.character, bvh, _squat_spec(0.05, 0.9)[1], abandon_unclean=True)  # type: ignore[attr-defined]
     assert not clean.report.abandoned and clean.report.complete
+
+
+def test_a_build_resumed_from_an_earlier_one_keeps_its_keyframes_and_goes_on() -> None:
+    """``resume=(earlier, 2)``: the earlier build's keyframes before phase 2 are kept bit for
+    bit (checks and COM errors with them), and tracking goes on from the last of them as the
+    whole build did (the same spec gives the same keyframes after it)."""
+    ctx, spec = _slipping_spec(offset=0.0)
+    bvh = ctx.scene.collision.bvh  # type: ignore[attr-defined]
+    whole = build_motion(ctx.character, bvh, spec)  # type: ignore[attr-defined]
+    resumed = build_motion(ctx.character, bvh, spec, resume=(whole, 2))  # type: ignore[attr-defined]
+    kept = [k for k in whole.keyframes if k.t < 0.6 - 1e-9]
+    assert len(kept) >= 10
+    for a, b in zip(kept, resumed.keyframes, strict=False):
+        assert a.t == b.t and np.array_equal(a.q, b.q)
+    assert resumed.checks[: len(kept)] == whole.checks[: len(kept)]
+    assert len(resumed.keyframes) == len(whole.keyframes)
+    for a, b in zip(whole.keyframes, resumed.keyframes, strict=True):
+        assert abs(a.t - b.t) < 1e-9
+        np.testing.assert_allclose(a.q, b.q, atol=1e-6)
+    assert resumed.report.complete and resumed.report.phases_animated == 3

@@ -26,6 +26,7 @@ from planner.contact.context import ContactParams, make_context
 from planner.contact.planner import ContactPlan, Endpoint, PlanOptions, plan_contact_motion
 from planner.contact.sequence import SequenceParams
 from planner.contact.state import ContactState
+from planner.motion import tuning
 from planner.motion.sequence import phase_kinematics
 from planner.offline import load_offline_data
 from planner.result import PlanResult, PlanStatus
@@ -226,6 +227,29 @@ def test_keyframes_pass_the_independent_audit(planned) -> None:  # type: ignore[
     if name not in STILL_COLLIDING:
         assert audit.penetrating_frames == 0, audit.summary()
         assert audit.self_collision_frames == 0, audit.summary()
+
+
+def test_a_dynamic_com_slows_only_from_where_the_body_could_not_follow(planned) -> None:  # type: ignore[no-untyped-def]
+    """A plan on a dynamic COM gives each phase its factor on the brisk durations: one of
+    ``DYNAMIC_SLOWDOWNS``, never decreasing along the plan (a trial the body could not follow
+    is kept up to the phase before the failing one, and only the rest is slowed); where the
+    factors differ the report says which phase failed and why. The keyframes stay evenly
+    spaced across the joins (0.5 to 1.5 periods)."""
+    _, result, *_ = planned
+    motion = result.value.motion
+    report = motion.report
+    if report["com_method"] != "2pac+dynamic":
+        assert report["dynamic_slowdowns"] is None and report["dynamic_refused"]
+        return
+    factors = report["dynamic_slowdowns"]
+    assert len(factors) == len(result.value.states)
+    assert all(f in tuning.DYNAMIC_SLOWDOWNS for f in factors)
+    assert all(a <= b for a, b in zip(factors, factors[1:], strict=False))
+    assert report["dynamic_slowdown"] == max(factors)
+    if len(set(factors)) > 1:
+        assert str(report["dynamic_trials"][0]).startswith("phase ")
+    gaps = np.diff([k.t for k in motion.keyframes])
+    assert gaps.min() >= 0.5 / 30.0 - 1e-9 and gaps.max() <= 1.5 / 30.0 + 1e-9
 
 
 def test_a_neighbouring_seed_and_a_nudged_start_solve_too(planned) -> None:  # type: ignore[no-untyped-def]
