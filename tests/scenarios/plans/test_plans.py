@@ -12,6 +12,7 @@ inside the kinematic polytopes, and the same seed giving the same plan. Scenario
 
 from __future__ import annotations
 
+import itertools
 import json
 from math import comb
 from pathlib import Path
@@ -244,7 +245,7 @@ def test_a_dynamic_com_slows_only_from_where_the_body_could_not_follow(planned) 
     factors = report["dynamic_slowdowns"]
     assert len(factors) == len(result.value.states)
     assert all(f in tuning.DYNAMIC_SLOWDOWNS for f in factors)
-    assert all(a <= b for a, b in zip(factors, factors[1:], strict=False))
+    assert all(a <= b for a, b in itertools.pairwise(factors))
     assert report["dynamic_slowdown"] == max(factors)
     if len(set(factors)) > 1:
         assert str(report["dynamic_trials"][0]).startswith("phase ")
