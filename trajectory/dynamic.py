@@ -128,7 +128,8 @@ def dynamic_com(
     reference: PiecewiseBezier | None = None,
     reference_times: Sequence[float] | None = None,
     settings: DynamicSettings | None = None,
-    fixed: PiecewiseBezier | None = None,
+    before: BezierCurve | None = None,
+    after: BezierCurve | None = None,
 ) -> DynamicCom | None:
     """A C2 COM from ``start`` to ``end`` (3,), at rest at both, phase j lasting
     durations[j] s, whose wrench lies in phase j's contact cone at ``settings.samples``
@@ -137,9 +138,11 @@ def dynamic_com(
     reference_times[j + 1] (n + 1 times, s; the reference is compared phase by phase at the
     same fractions of each phase). None when a
     QP is infeasible; ``valid`` False when the linearisation did not settle into an exactly
-    valid curve within ``settings.iterations`` rounds. ``fixed`` : the first phases' segments
-    kept as they are (an earlier answer's, same degree, same times): the rest of the curve
-    is found around them, joining them C2."""
+    valid curve within ``settings.iterations`` rounds. ``before`` / ``after`` : segments (of
+    the same degree) the curve joins C2 instead of starting / ending at rest: it starts where
+    ``before`` ends (``start`` must be that point) and ends where ``after`` starts (``end``
+    likewise); its times still start at 0 (a window of a longer curve, shifted by the
+    caller)."""
     settings = settings or DynamicSettings()
     phases = list(phases)
     if not phases:
@@ -159,7 +162,6 @@ def dynamic_com(
     basis2 = bernstein(d - 2, u) @ _second_difference(d) * d * (d - 1)
 
     sample_times = [times[j] + u * (times[j + 1] - times[j]) for j in range(len(phases))]
-    kept = _fixed_segments(fixed, times, d)
     targets: list[FloatArray] | None = None
     if reference is not None:
         if reference_times is None or len(reference_times) != len(phases) + 1:
@@ -173,17 +175,12 @@ def dynamic_com(
     else:
         line = [c0 + (ts / times[-1])[:, None] * (c1 - c0) for ts in sample_times]
         lin = [(t, np.zeros_like(t)) for t in line]
-    for j, segment in enumerate(kept):  # linearised about themselves: exact there
-        lin[j] = (segment(sample_times[j]), segment.derivative(2)(sample_times[j]))
     boxes = [c for c, _ in lin]
-    eq_rows, eq_rhs, in_rows, in_rhs = _fixed_rows(layout, times, c0, c1, d, kins, boxes, len(kept))
-    held_rows, held_rhs = _held_rows(layout, kept)
-    eq_rows, eq_rhs = sparse.vstack([eq_rows, held_rows]), np.concatenate([eq_rhs, held_rhs])
+    durations_arr = np.diff(times)
+    head = _join_points(before, float(durations_arr[0]), d, c0, at_end=False)
+    tail = _join_points(after, float(durations_arr[-1]), d, c1, at_end=True)
+    eq_rows, eq_rhs, in_rows, in_rhs = _fixed_rows(layout, times, head, tail, d, kins, boxes)
     cost_p, cost_q = _cost(layout, times, basis, basis2, settings, targets)
-    # a kept phase's weights need only be non-negative: its curve is already valid
-    margins = np.full(layout.n - layout.n_curve, -settings.margin)
-    if kept:
-        margins[: layout.weights_at[len(kept)][0] - layout.n_curve] = 0.0
     result: DynamicCom | None = None
     for iteration in range(1, settings.iterations + 1):
         w_rows, w_rhs = _wrench_rows(layout, phases, times, basis, basis2, lin)
@@ -194,11 +191,11 @@ def dynamic_com(
             sparse.vstack([eq_rows, w_rows]),
             np.concatenate([eq_rhs, w_rhs]),
             in_rows,
-            np.concatenate([in_rhs, margins]),
+            np.concatenate([in_rhs, np.full(layout.n - layout.n_curve, -settings.margin)]),
         )
         if x is None:
             return result
-        curve = _curve(layout, x, times, d, kept)
+        curve = _curve(layout, x, times, d)
         lin = [(curve(ts), curve.derivative(2)(ts)) for ts in sample_times]
         valid = all(
             equilibrium_margin(phase, c, a).feasible
@@ -214,25 +211,24 @@ def dynamic_com(
 def _fixed_rows(
     layout: _Layout,
     times: FloatArray,
-    c0: FloatArray,
-    c1: FloatArray,
+    head: FloatArray,
+    tail: FloatArray,
     d: int,
     kins: Sequence[Halfspaces | None],
     boxes: Sequence[FloatArray],
-    n_kept: int = 0,
 ) -> tuple[sparse.csr_matrix, FloatArray, sparse.csr_matrix, FloatArray]:
-    """Equalities (rest ends, C0/C1/C2 joins) and inequalities (kinematics, then the
-    weight margin -beta <= -margin whose right-hand side the caller appends); the first
-    ``n_kept`` phases, held by equalities of their own, get no box nor kinematic rows."""
+    """Equalities (the first three control points ``head`` (3, 3), the last three ``tail``
+    (3, 3, last first), C0/C1/C2 joins) and inequalities (kinematics, then the weight margin
+    -beta <= -margin whose right-hand side the caller appends)."""
     rows: list[dict[int, float]] = []
     rhs: list[float] = []
     n_last = layout.n_phases - 1
     for axis in range(3):
-        for index in range(3):  # rest at the start and at the end: three equal points
+        for index in range(3):
             rows.append({layout.point(0, index) + axis: 1.0})
-            rhs.append(float(c0[axis]))
+            rhs.append(float(head[index, axis]))
             rows.append({layout.point(n_last, d - index) + axis: 1.0})
-            rhs.append(float(c1[axis]))
+            rhs.append(float(tail[index, axis]))
     for j in range(layout.n_phases - 1):
         ta, tb = times[j + 1] - times[j], times[j + 2] - times[j + 1]
         for axis in range(3):
@@ -264,8 +260,6 @@ def _fixed_rows(
     bounds: list[FloatArray] = []
     per_phase = (d + 1) * 3
     for j, kin in enumerate(kins):
-        if j < n_kept:
-            continue
         low = np.min(boxes[j], axis=0) - TRUST_RADIUS
         high = np.max(boxes[j], axis=0) + TRUST_RADIUS
         cols = np.arange(layout.point(j, 0), layout.point(j, 0) + per_phase)
@@ -303,34 +297,24 @@ def _fixed_rows(
     return eq, np.asarray(rhs), in_rows, in_rhs
 
 
-def _fixed_segments(
-    fixed: PiecewiseBezier | None, times: FloatArray, degree: int
-) -> list[BezierCurve]:
-    """The segments of ``fixed`` checked against the phases they stand for."""
-    if fixed is None:
-        return []
-    kept = list(fixed.segments)
-    if len(kept) >= len(times) - 1:
-        raise ValueError("fixed: fewer segments than phases are needed")
-    for j, segment in enumerate(kept):
-        if segment.control_points.shape != (degree + 1, 3):
-            raise ValueError(f"fixed: segment {j} is not of degree {degree} in 3D")
-        if abs(segment.t0 - times[j]) > 1e-9 or abs(segment.t1 - times[j + 1]) > 1e-9:
-            raise ValueError(f"fixed: segment {j} does not span phase {j}'s times")
-    return kept
-
-
-def _held_rows(
-    layout: _Layout, kept: Sequence[BezierCurve]
-) -> tuple[sparse.csr_matrix, FloatArray]:
-    """Equalities holding the control points of the ``kept`` phases where they are."""
-    count = sum(segment.control_points.size for segment in kept)
-    cols = np.arange(count)  # kept phases come first in the layout, point by point
-    values = np.concatenate([np.zeros(0), *(np.asarray(s.control_points).ravel() for s in kept)])
-    rows = sparse.coo_matrix(
-        (np.ones(count), (np.arange(count), cols)), shape=(count, layout.n)
-    ).tocsr()
-    return rows, np.asarray(values, dtype=np.float64)
+def _join_points(
+    segment: BezierCurve | None, duration: float, degree: int, point: FloatArray, at_end: bool
+) -> FloatArray:
+    """(3, 3) the three control points at one end of the curve (from that end inward) that
+    join ``segment`` C2, for an end phase lasting ``duration`` s: at rest at ``point`` when
+    ``segment`` is None. ``at_end``: ``segment`` follows the curve (else it precedes it)."""
+    if segment is None:
+        return np.tile(point, (3, 1))
+    ctrl = np.asarray(segment.control_points, dtype=np.float64)
+    if ctrl.shape != (degree + 1, 3):
+        raise ValueError(f"before/after: a segment of degree {degree} in 3D is needed")
+    near = ctrl[:3] if at_end else ctrl[::-1][:3]  # from the shared point outward
+    if float(np.linalg.norm(near[0] - point)) > 1e-9:
+        raise ValueError("start/end: must be where the joined segment ends/starts")
+    ratio = duration / (segment.t1 - segment.t0)
+    first = near[0] + ratio * (near[0] - near[1])  # velocity matched (sign: walking inward)
+    second = 2.0 * first - near[0] + ratio**2 * (near[2] - 2.0 * near[1] + near[0])
+    return np.stack([near[0], first, second])
 
 
 KINEMATIC_SLACK = 5e-4
@@ -470,12 +454,9 @@ def _solve(
     return x if x.shape == (n,) and np.all(np.isfinite(x)) else None
 
 
-def _curve(
-    layout: _Layout, x: FloatArray, times: FloatArray, d: int, kept: Sequence[BezierCurve] = ()
-) -> PiecewiseBezier:
-    """The curve of the QP's answer ``x``, the ``kept`` segments bit for bit."""
-    segments = list(kept)
-    for j in range(len(kept), layout.n_phases):
+def _curve(layout: _Layout, x: FloatArray, times: FloatArray, d: int) -> PiecewiseBezier:
+    segments = []
+    for j in range(layout.n_phases):
         start = layout.point(j, 0)
         ctrl = x[start : start + (d + 1) * 3].reshape(d + 1, 3)
         segments.append(BezierCurve(ctrl, float(times[j]), float(times[j + 1])))

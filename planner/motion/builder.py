@@ -45,7 +45,8 @@ class MotionReport:
     control steps solved without the collision dampers (their QP had no solution).
     swings_raised : swing phases tracked again with a higher arc (2PAC 7.2), and flights
     with their limbs tucked further. abandoned : the build stopped at the first phase that
-    could not be played cleanly (``build_motion(abandon_unclean=True)``).
+    could not be played cleanly (``build_motion(abandon_unclean=True)``), abandoned_phase
+    (its index).
     """
 
     phases_animated: int
@@ -62,6 +63,7 @@ class MotionReport:
     swings_raised: int = 0
     colliding_times: tuple[float, ...] = field(default=())
     abandoned: bool = False
+    abandoned_phase: int | None = None
 
     @property
     def complete(self) -> bool:
@@ -470,7 +472,7 @@ def build_motion(
         for k, lift in targets.lifts.items()
         if (swing := spec.phases[k].swing) is not None and lift > swing.lift
     )
-    abandoned = False
+    abandoned: int | None = None
     for times in groups:
         k = targets.phase_index(times[0])
         swing = spec.phases[k].swing
@@ -520,13 +522,13 @@ def build_motion(
         if best.cut_short:
             break
         if abandon_unclean and _unclean(best, last_key):
-            abandoned = True
+            abandoned = k
             break
     keyframes = [key for s in segments for key in s.keyframes]
     checks = [c for s in segments for c in s.checks]
     com_errors = [e for s in segments for e in s.com_errors]
     cut_short = any(s.cut_short for s in segments)
-    if spec.q_end is not None and not cut_short and not abandoned:
+    if spec.q_end is not None and not cut_short and abandoned is None:
         q = _blend_into(checker, targets, keyframes, checks, com_errors, spec.q_end)
     errors = np.asarray(com_errors)
     colliding = tuple(key.t for key, c in zip(keyframes, checks, strict=True) if c.colliding)
@@ -546,7 +548,8 @@ def build_motion(
         qp_fallbacks=tracker.fallbacks,
         swings_raised=retried,
         colliding_times=colliding,
-        abandoned=abandoned,
+        abandoned=abandoned is not None,
+        abandoned_phase=abandoned,
     )
     phases = tuple(Phase(t0=p.t0, t1=p.t1, contacts=p.stance) for p in spec.phases)
     com_segments = tuple(

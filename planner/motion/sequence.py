@@ -230,49 +230,112 @@ def dynamic_com(
     reference: trajectory.ComTrajectory,
     speed: float = 1.0,
     factors: Sequence[float] | None = None,
-    kept: trajectory.PiecewiseBezier | None = None,
     levels: Sequence[float] = tuning.DYNAMIC_SLOWDOWNS,
 ) -> tuple[trajectory.DynamicCom | None, list[float]]:
     """A COM through ``states`` whose wrench lies in each phase's contact cone (Eq. 1) at
     the collocation times of ``trajectory.dynamic_com``, near 2PAC's ``reference`` curve,
     phase j lasting :func:`dynamic_durations` times ``factors[j]`` (default: the first of
-    ``levels`` for every phase). ``kept`` : the curve's first segments, kept as they are
-    (an earlier answer's). When no curve passes, the phases after the kept ones are slowed
-    to the next of ``levels`` and the QP solved again. Returns (the curve or None, the
-    factors used or the last tried)."""
-    phases_tr = [contact_phase(character, s) for s in states]
-    kinematics = [phase_kinematics(data, s) for s in states]
-    durations = np.asarray(dynamic_durations(character, states, speed))
-    start = com_position(character.model, states[0].q)
-    end = com_position(character.model, states[-1].q)
+    ``levels`` for every phase). When no curve passes, every phase is slowed to the next of
+    ``levels`` and the QP solved again. Returns (the curve or None, the factors used or the
+    last tried)."""
     used = list(factors) if factors is not None else [levels[0]] * len(states)
-    first = 0 if kept is None else len(kept.segments)
     while True:
-        found = trajectory.dynamic_com(
-            phases_tr,
-            list(durations * np.asarray(used)),
-            start,
-            end,
-            kinematics=kinematics,
-            reference=reference.curve,
-            reference_times=list(reference.phase_times),
-            fixed=kept,
-        )
+        found = _dynamic_window(character, data, states, reference, speed, used, 0, len(states))
         if found is not None and found.valid:
             return found, used
-        slower = _slower(used, first, levels)
+        slower = _slower(used, 0, len(states), levels)
         if slower is None:
             return None, used
         used = slower
 
 
-def _slower(factors: Sequence[float], first: int, levels: Sequence[float]) -> list[float] | None:
-    """``factors`` with phase ``first`` and every later phase slowed to at least the level
-    after ``factors[first]``; None past the last of ``levels``."""
-    above = [level for level in levels if level > factors[first] + 1e-12]
+def redo_window(
+    character: Character,
+    data: OfflineData,
+    states: Sequence[ContactState],
+    reference: trajectory.ComTrajectory,
+    earlier: trajectory.DynamicCom,
+    factors: Sequence[float],
+    window: tuple[int, int],
+    speed: float = 1.0,
+) -> trajectory.DynamicCom | None:
+    """``earlier``'s curve with the phases of ``window`` [lo, hi) found again, each lasting
+    :func:`dynamic_durations` times ``factors[j]``, joined C2 to the phases before (kept as
+    they are) and after (kept, shifted in time by what the window gained); None when no
+    window curve passes Eq. 1."""
+    lo, hi = window
+    found = _dynamic_window(
+        character, data, states, reference, speed, factors, lo, hi, earlier.curve.segments
+    )
+    if found is None or not found.valid:
+        return None
+    old = earlier.phase_times
+    shift = float(found.phase_times[-1]) - float(old[hi] - old[lo])
+    segments = list(earlier.curve.segments[:lo])
+    segments += [
+        trajectory.BezierCurve(seg.control_points, seg.t0 + old[lo], seg.t1 + old[lo])
+        for seg in found.curve.segments
+    ]
+    segments += [
+        trajectory.BezierCurve(seg.control_points, seg.t0 + shift, seg.t1 + shift)
+        for seg in earlier.curve.segments[hi:]
+    ]
+    times = np.concatenate(
+        [old[: lo + 1], old[lo] + np.asarray(found.phase_times[1:]), old[hi + 1 :] + shift]
+    )
+    return trajectory.DynamicCom(
+        trajectory.PiecewiseBezier(tuple(segments)), times, found.iterations, True
+    )
+
+
+def _dynamic_window(
+    character: Character,
+    data: OfflineData,
+    states: Sequence[ContactState],
+    reference: trajectory.ComTrajectory,
+    speed: float,
+    factors: Sequence[float],
+    lo: int,
+    hi: int,
+    around: Sequence[trajectory.BezierCurve] = (),
+) -> trajectory.DynamicCom | None:
+    """The dynamic COM QP over phases [lo, hi) (times from 0), at rest at the plan's ends,
+    joined C2 to ``around``'s segments lo - 1 and hi (an earlier curve) elsewhere."""
+    durations = np.asarray(dynamic_durations(character, states, speed)) * np.asarray(factors)
+    before = around[lo - 1] if lo > 0 else None
+    after = around[hi] if hi < len(states) else None
+    start = (
+        np.asarray(before.control_points[-1])
+        if before is not None
+        else com_position(character.model, states[0].q)
+    )
+    end = (
+        np.asarray(after.control_points[0])
+        if after is not None
+        else com_position(character.model, states[-1].q)
+    )
+    return trajectory.dynamic_com(
+        [contact_phase(character, s) for s in states[lo:hi]],
+        list(durations[lo:hi]),
+        start,
+        end,
+        kinematics=[phase_kinematics(data, s) for s in states[lo:hi]],
+        reference=reference.curve,
+        reference_times=list(reference.phase_times[lo : hi + 1]),
+        before=before,
+        after=after,
+    )
+
+
+def _slower(
+    factors: Sequence[float], lo: int, hi: int, levels: Sequence[float]
+) -> list[float] | None:
+    """``factors`` with phases [lo, hi) slowed to at least the level after the fastest of
+    them; None past the last of ``levels``."""
+    above = [level for level in levels if level > min(factors[lo:hi]) + 1e-12]
     if not above:
         return None
-    return [f if j < first else max(f, above[0]) for j, f in enumerate(factors)]
+    return [max(f, above[0]) if lo <= j < hi else f for j, f in enumerate(factors)]
 
 
 def timed_com(
@@ -421,43 +484,57 @@ def sequence_motion(
     factors: list[float] | None = None
     dynamic_refused: str | None = None
     # trial builds: a dynamic curve at brisk durations; where the body cannot follow it,
-    # the phases from the one before the first unclean phase on are slowed to the next
-    # level, the curve and keyframes before them kept (a fallback per window)
-    earlier: tuple[trajectory.DynamicCom, BuiltMotion] | None = None
+    # the failing phase and its neighbours are slowed to the next level and their curve found
+    # again, joined to the rest, the keyframes before them kept (a fallback per window)
     levels = tuning.DYNAMIC_SLOWDOWNS
     trials: list[str] = []  # why each refused trial was refused
-    first = 0
-    trial: list[float] | None = None
-    for _ in range(tuning.DYNAMIC_MAX_BUILDS if len(states) >= 2 else 0):
-        kept = None
-        if earlier is not None and first > 0:
-            kept = trajectory.PiecewiseBezier(earlier[0].curve.segments[:first])
-        dynamic, trial = dynamic_com(
-            character, data, states, com_trajectory, speed, trial, kept, levels
+    n = len(states)
+    dynamic: trajectory.DynamicCom | None = None
+    factors_tried: list[float] = []
+    if n >= 2:
+        dynamic, factors_tried = dynamic_com(
+            character, data, states, com_trajectory, speed, None, levels
         )
         if dynamic is None:
             dynamic_refused = (
-                f"no curve passes Eq. 1 up to {max(trial):g} times the brisk durations"
+                f"no curve passes Eq. 1 up to {max(factors_tried):g} times the brisk durations"
             )
             trials.append(dynamic_refused)
+    keep: tuple[BuiltMotion, int] | None = None
+    for _ in range(tuning.DYNAMIC_MAX_BUILDS):
+        if dynamic is None:
             break
         times_d = np.asarray(dynamic.phase_times, dtype=np.float64)
-        resume = (earlier[1], first) if earlier is not None and first > 0 else None
-        candidate = build(dynamic.curve, times_d, trial=True, resume=resume)
+        candidate = build(dynamic.curve, times_d, trial=True, resume=keep)
         unplayable = _unplayable(candidate)
         if unplayable is None or candidate.report.cut_short:
-            built, factors = candidate, trial
+            built, factors = candidate, factors_tried
             curve, times = dynamic.curve, times_d
-            methods = ("2pac+dynamic",) * len(states)
+            methods = ("2pac+dynamic",) * n
             break
-        bad = max(0, candidate.report.phases_animated - 1)
-        dynamic_refused = f"phase {bad} at {trial[bad]:g} times the brisk durations: {unplayable}"
+        bad = candidate.report.abandoned_phase
+        if bad is None:  # not abandoned (a shortfall only the whole motion shows)
+            bad = max(0, candidate.report.phases_animated - 1)
+        dynamic_refused = (
+            f"phase {bad} at {factors_tried[bad]:g} times the brisk durations: {unplayable}"
+        )
         trials.append(dynamic_refused)
-        first = max(0, bad - 1)
-        slower = _slower(trial, first, levels)
-        if slower is None:
+        lo = max(0, bad - tuning.DYNAMIC_WINDOW_BEFORE)
+        found: trajectory.DynamicCom | None = None
+        for hi in (min(n, bad + 1 + tuning.DYNAMIC_WINDOW_AFTER), n):
+            slower = _slower(factors_tried, lo, hi, levels)
+            if slower is None:
+                break
+            found = redo_window(
+                character, data, states, com_trajectory, dynamic, slower, (lo, hi), speed
+            )
+            if found is not None:
+                factors_tried = slower
+                break
+        if found is None:
+            trials.append(f"no curve passes Eq. 1 slower from phase {lo} on")
             break
-        earlier, trial = (dynamic, candidate), slower
+        dynamic, keep = found, (candidate, lo)
     if built is None:
         curve = com_trajectory.curve
         times = np.asarray(com_trajectory.phase_times, dtype=np.float64)

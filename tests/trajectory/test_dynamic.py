@@ -170,23 +170,30 @@ def test_the_height_follows_the_reference_closer_than_the_path() -> None:
     assert float(np.abs(flat.curve(samples)[:, 2] - reference(samples)[:, 2]).max()) > 0.015
 
 
-def test_kept_phases_stay_bit_for_bit_and_the_rest_joins_them_c2() -> None:
-    """``fixed``: a walk re-timed from its fourth phase on (slower there) keeps the first
-    three segments of the earlier answer exactly, joins them C2 and passes Eq. 1."""
+def test_a_window_found_again_joins_its_neighbours_c2() -> None:
+    """``before`` / ``after``: phases 3-4 of a walk found again slower, between segments 2
+    and 5 of the earlier answer, start and end on them with the same velocity and
+    acceleration and pass Eq. 1; a segment that does not meet ``start`` is refused."""
     phases, durations, start, end = _walk(7, 0.3, 0.1)
     first = trajectory.dynamic_com(phases, durations, start, end)
     assert first is not None and first.valid
-    slower = durations[:3] + [1.5 * x for x in durations[3:]]
-    kept = trajectory.PiecewiseBezier(first.curve.segments[:3])
-    again = trajectory.dynamic_com(phases, slower, start, end, fixed=kept)
-    assert again is not None and again.valid
-    for a, b in zip(first.curve.segments[:3], again.curve.segments[:3], strict=True):
-        np.testing.assert_array_equal(a.control_points, b.control_points)
-    a, b = again.curve.segments[2], again.curve.segments[3]
+    before, after = first.curve.segments[2], first.curve.segments[5]
+    slower = [1.5 * x for x in durations[3:5]]
+    window = trajectory.dynamic_com(
+        phases[3:5],
+        slower,
+        before.control_points[-1],
+        after.control_points[0],
+        before=before,
+        after=after,
+    )
+    assert window is not None and window.valid
+    head, tail = window.curve.segments[0], window.curve.segments[-1]
     for order in (0, 1, 2):
-        left = a.derivative(order)(a.t1) if order else a(a.t1)
-        right = b.derivative(order)(b.t0) if order else b(b.t0)
-        np.testing.assert_allclose(left, right, atol=1e-5 * (1 + np.abs(left).max()))
-    np.testing.assert_allclose(again.phase_times, np.concatenate([[0], np.cumsum(slower)]))
-    with pytest.raises(ValueError, match="fixed"):
-        trajectory.dynamic_com(phases, [2.0 * x for x in durations], start, end, fixed=kept)
+        for left, right in ((before, head), (tail, after)):
+            a = left.derivative(order)(left.t1) if order else left(left.t1)
+            b = right.derivative(order)(right.t0) if order else right(right.t0)
+            np.testing.assert_allclose(a, b, atol=1e-5 * (1 + np.abs(a).max()))
+    np.testing.assert_allclose(window.phase_times, np.concatenate([[0], np.cumsum(slower)]))
+    with pytest.raises(ValueError, match="start"):
+        trajectory.dynamic_com(phases[3:5], slower, start, after.control_points[0], before=before)

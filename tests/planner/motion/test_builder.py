@@ -146,7 +146,7 @@ def test_a_trial_build_is_abandoned_at_its_first_unclean_phase() -> None:
     assert whole.report.max_hold_error > tuning.HOLD_TOLERANCE
     trial = build_motion(ctx.character, bvh, spec, abandon_unclean=True)  # type: ignore[attr-defined]
     assert trial.report.abandoned and not trial.report.cut_short
-    assert trial.report.phases_animated == 1
+    assert trial.report.phases_animated == 1 and trial.report.abandoned_phase == 1
     assert trial.keyframes[-1].t <= 0.6 + 1e-9
     shortfall = trial.report.shortfall()
     assert shortfall is not None and "abandoned" in shortfall and "slips" in shortfall
