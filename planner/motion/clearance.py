@@ -36,6 +36,19 @@ from planner.motion import tuning
 FloatArray = NDArray[np.float64]
 
 
+Poses = tuple[FloatArray, FloatArray]
+
+
+def shape_poses(geometry_data: Any) -> Poses:
+    """The placements of ``geometry_data`` (updated by the caller) as arrays: rotations
+    (G, 3, 3) and translations (G, 3), world frame."""
+    homogeneous = np.array([m.homogeneous for m in geometry_data.oMg]).reshape(-1, 4, 4)
+    return (
+        np.ascontiguousarray(homogeneous[:, :3, :3]),
+        np.ascontiguousarray(homogeneous[:, :3, 3]),
+    )
+
+
 class PointJacobians:
     """Jacobians (3, nv) of the world velocity of body points at one configuration (world
     axes), each joint's Jacobian read once (a step's rows often share joints); needs
@@ -125,9 +138,11 @@ class SceneDistances:
         since (centre displacement plus the rotation change's Frobenius norm, which bounds
         its spectral norm, times the bounding radius). Keeps the placements for
         :meth:`remember`."""
-        placements = geometry_data.oMg
-        self.rotations = np.array([m.rotation for m in placements]).reshape(-1, 3, 3)
-        translations = np.array([m.translation for m in placements]).reshape(-1, 3)
+        return self.settled_at(shape_poses(geometry_data), threshold)
+
+    def settled_at(self, poses: Poses, threshold: float) -> NDArray[np.bool_]:
+        """:meth:`settled` with the placements given as :func:`shape_poses` arrays."""
+        self.rotations, translations = poses
         self.centres = np.einsum("gab,gb->ga", self.rotations, self.local_centres) + translations
         shift = np.linalg.norm(self.centres - self.measured_centres, axis=1)
         turn = np.sqrt(np.sum((self.rotations - self.measured_rotations) ** 2, axis=(1, 2)))
@@ -164,6 +179,9 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
         self.skipped: frozenset[int] = frozenset()
         self.light: dict[int, float] = {}
         self.rows = 0
+        self.shapes = [
+            (i, o.geometry, int(o.parentJoint)) for i, o in enumerate(geometry.geometryObjects)
+        ]
         # per shape: recent (step, scene point (3,), normal (3,), body point in joint frame)
         self.memory: dict[int, list[tuple[int, FloatArray, FloatArray, FloatArray]]] = {}
         self.steps = 0
@@ -189,26 +207,37 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
     def compute_qp_inequalities(
         self, configuration: Any, dt: float
     ) -> tuple[FloatArray, FloatArray] | None:
-        """``G dq <= h`` rows of the shapes within the influence distance (None if none)."""
-        model, data = self.model, configuration.data
-        pin.updateGeometryPlacements(model, data, self.geometry, self.geometry_data)
+        """``G dq <= h`` rows of the shapes within the influence distance (None if none)
+        (pink's ``Limit`` interface; the tracker calls :meth:`rows_at`)."""
+        data = configuration.data
+        pin.updateGeometryPlacements(self.model, data, self.geometry, self.geometry_data)
+        poses = shape_poses(self.geometry_data)
+        return self.rows_at(data, self.geometry_data, poses, PointJacobians(self.model, data))
+
+    def rows_at(
+        self, data: Any, geometry_data: Any, poses: Poses, jacobians: PointJacobians
+    ) -> tuple[FloatArray, FloatArray] | None:
+        """The rows of :meth:`compute_qp_inequalities` at the kinematics of ``data`` (joint
+        placements and Jacobians), the shape placements ``geometry_data`` and ``poses``
+        (:func:`shape_poses`) already computed there."""
         rows: list[FloatArray] = []
         bounds: list[float] = []
         self.steps += 1
         oldest = self.steps - tuning.WITNESS_MEMORY
-        settled = self.distances.settled(self.geometry_data, tuning.INFLUENCE_DISTANCE)
-        jacobians = PointJacobians(model, data)
-        for i, obj in enumerate(self.geometry.geometryObjects):
+        settled = self.distances.settled_at(poses, tuning.INFLUENCE_DISTANCE)
+        placements = geometry_data.oMg
+        for i, shape, joint in self.shapes:
             if i in self.skipped:
                 continue
             security = self.light.get(i, tuning.SECURITY_DISTANCE)
-            joint = int(obj.parentJoint)
             frame = data.oMi[joint]
-            memory = [m for m in self.memory.get(i, []) if m[0] > oldest]
+            memory = [m for m in self.memory.get(i, ()) if m[0] > oldest]
             self.memory[i] = memory
+            if not memory and settled[i]:
+                continue
             if not settled[i]:
                 nearest = np.inf
-                for d, result in self.distances.each(obj.geometry, self.geometry_data.oMg[i]):
+                for d, result in self.distances.each(shape, placements[i]):
                     nearest = min(nearest, d)
                     if d > tuning.INFLUENCE_DISTANCE:
                         continue
@@ -272,8 +301,13 @@ class PairBroadPhase:
         distances it then computes."""
         if len(self.pair_array) == 0:
             return []
-        rot = np.array([m.rotation for m in geometry_data.oMg]).reshape(-1, 3, 3)
-        trans = np.array([m.translation for m in geometry_data.oMg]).reshape(-1, 3)
+        return self.near_at(shape_poses(geometry_data), margin)
+
+    def near_at(self, poses: Poses, margin: float) -> list[int]:
+        """:meth:`near` with the placements given as :func:`shape_poses` arrays."""
+        if len(self.pair_array) == 0:
+            return []
+        rot, trans = poses
         centres = np.einsum("gab,gb->ga", rot, self.middles) + trans
         if self.last is not None:
             last_rot, last_centres = self.last
@@ -320,17 +354,26 @@ class SelfClearance(Limit):  # type: ignore[misc]
     def compute_qp_inequalities(
         self, configuration: Any, dt: float
     ) -> tuple[FloatArray, FloatArray] | None:
-        """``G dq <= h`` rows of the pairs within the influence distance (None if none)."""
-        model, data = self.model, configuration.data
-        pin.updateGeometryPlacements(model, data, self.geometry, self.geometry_data)
-        near = self.broad.near(self.geometry_data, tuning.INFLUENCE_DISTANCE)
-        jacobians = PointJacobians(model, data)
+        """``G dq <= h`` rows of the pairs within the influence distance (None if none)
+        (pink's ``Limit`` interface; the tracker calls :meth:`rows_at`)."""
+        data = configuration.data
+        pin.updateGeometryPlacements(self.model, data, self.geometry, self.geometry_data)
+        poses = shape_poses(self.geometry_data)
+        return self.rows_at(self.geometry_data, poses, PointJacobians(self.model, data))
+
+    def rows_at(
+        self, geometry_data: Any, poses: Poses, jacobians: PointJacobians
+    ) -> tuple[FloatArray, FloatArray] | None:
+        """The rows of :meth:`compute_qp_inequalities` at the shape placements of
+        ``geometry_data`` (its distance requests signed) and ``poses`` (:func:`shape_poses`),
+        with ``jacobians`` read at the same kinematics."""
+        near = self.broad.near_at(poses, tuning.INFLUENCE_DISTANCE)
         rows: list[FloatArray] = []
         bounds: list[float] = []
         for k in near:
             a, b = self.pairs[k]
-            pin.computeDistance(self.geometry, self.geometry_data, k)
-            result = self.geometry_data.distanceResults[k]
+            pin.computeDistance(self.geometry, geometry_data, k)
+            result = geometry_data.distanceResults[k]
             d = float(result.min_distance)
             self.broad.remember(k, d)
             if d > tuning.INFLUENCE_DISTANCE:
