@@ -195,7 +195,7 @@ class _Targets:
     def com(self, t: float) -> FloatArray:
         """(3,) m, the COM curve at ``t`` (clamped to its span)."""
         curve = self.spec.com
-        return np.asarray(curve(np.array([min(max(t, curve.t0), curve.t1)]))[0], dtype=np.float64)
+        return np.asarray(curve(min(max(t, curve.t0), curve.t1)), dtype=np.float64)
 
     def carried(self, phase: MotionPhase, t: float, k: int) -> tuple[tuple[str, FloatArray], ...]:
         """(limb, pose (4, 4)) of the limbs a flight ``phase`` (index ``k``) carries at

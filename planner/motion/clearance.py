@@ -50,33 +50,41 @@ def shape_poses(geometry_data: Any) -> Poses:
 
 
 class PointJacobians:
-    """Jacobians (3, nv) of the world velocity of body points at one configuration (world
-    axes), each joint's Jacobian read once (a step's rows often share joints); needs
-    ``computeJointJacobians`` there."""
+    """Speeds of body points along directions, per unit of dq (rows of their Jacobians
+    (3, nv), world axes), at one configuration, each joint's Jacobian read once (a step's
+    rows often share joints); needs ``computeJointJacobians`` there."""
 
     def __init__(self, model: Any, data: Any) -> None:
         self.model, self.data = model, data
         self.joints: dict[int, tuple[FloatArray, FloatArray, FloatArray]] = {}
 
-    def __call__(self, joint: int, point: FloatArray) -> FloatArray:
-        """(3, nv) Jacobian of the world ``point`` (3,) fixed to ``joint``."""
+    def _joint(self, joint: int) -> tuple[FloatArray, FloatArray, FloatArray]:
         cached = self.joints.get(joint)
         if cached is None:
             j = pin.getJointJacobian(self.model, self.data, joint, pin.LOCAL_WORLD_ALIGNED)
             cached = (j[:3], j[3:], np.array(self.data.oMi[joint].translation))
             self.joints[joint] = cached
-        linear, angular, origin = cached
+        return cached
+
+    def along(self, joint: int, point: FloatArray, direction: FloatArray) -> FloatArray:
+        """(nv,) ``direction . J(point)``: the speed of the world ``point`` (3,) fixed to
+        ``joint`` along ``direction`` (3,) per unit of dq, without forming J (the point's
+        velocity is v + w x lever, so its component along n is n.v + (lever x n).w)."""
+        linear, angular, origin = self._joint(joint)
         lever = point - origin
-        skew = np.array(
-            [[0.0, -lever[2], lever[1]], [lever[2], 0.0, -lever[0]], [-lever[1], lever[0], 0.0]]
+        twist = np.array(
+            [
+                lever[1] * direction[2] - lever[2] * direction[1],
+                lever[2] * direction[0] - lever[0] * direction[2],
+                lever[0] * direction[1] - lever[1] * direction[0],
+            ]
         )
-        return np.asarray(linear - skew @ angular, dtype=np.float64)
+        return np.asarray(direction @ linear + twist @ angular, dtype=np.float64)
 
 
-def _damper_row(
-    normal: FloatArray, jacobian: FloatArray, distance: float, security: float
-) -> tuple[FloatArray, float]:
-    """One row of ``G dq <= h`` for ``n . J dq >= -rate (d - d_s)`` while the shape is
+def _damper_row(speed: FloatArray, distance: float, security: float) -> tuple[FloatArray, float]:
+    """One row of ``G dq <= h`` for ``n . J dq >= -rate (d - d_s)`` (``speed`` (nv,) is
+    ``n . J``, the approach speed per unit of dq, negated) while the shape is
     farther than the security distance ``d_s``; closer, it may not approach (a forearm next
     to the hand on the floor is not pushed up, dragging the held hand off its contact), and
     a shape inside the scene is pushed out at ``rate * |d|``, capped at ``MAX_PUSH``."""
@@ -84,7 +92,7 @@ def _damper_row(
         bound = tuning.DAMPER_RATE * (distance - security)
     else:
         bound = min(0.0, tuning.DAMPER_RATE * distance)
-    return -normal @ jacobian, max(bound, -tuning.MAX_PUSH)
+    return -speed, max(bound, -tuning.MAX_PUSH)
 
 
 class SceneDistances:
@@ -250,8 +258,7 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
                 d = float(normal @ (point - scene_point))
                 if d > tuning.INFLUENCE_DISTANCE:
                     continue
-                jac = jacobians(joint, point)
-                row, bound = _damper_row(normal, jac, d, security)
+                row, bound = _damper_row(jacobians.along(joint, point, normal), d, security)
                 rows.append(row)
                 bounds.append(bound)
         self.rows = len(rows)
@@ -379,9 +386,9 @@ class SelfClearance(Limit):  # type: ignore[misc]
             if d > tuning.INFLUENCE_DISTANCE:
                 continue
             normal = np.array(result.normal)
-            jac_a = jacobians(self.joints[a], np.array(result.getNearestPoint1()))
-            jac_b = jacobians(self.joints[b], np.array(result.getNearestPoint2()))
-            row, bound = _damper_row(normal, jac_b - jac_a, d, tuning.SECURITY_DISTANCE)
+            speed_a = jacobians.along(self.joints[a], np.array(result.getNearestPoint1()), normal)
+            speed_b = jacobians.along(self.joints[b], np.array(result.getNearestPoint2()), normal)
+            row, bound = _damper_row(speed_b - speed_a, d, tuning.SECURITY_DISTANCE)
             rows.append(row)
             bounds.append(bound)
         self.rows = len(rows)
