@@ -49,50 +49,57 @@ def shape_poses(geometry_data: Any) -> Poses:
     )
 
 
+def support_masks(model: Any) -> NDArray[np.bool_]:
+    """(njoints, nv) per joint, the velocity coordinates that move it (those of the joints
+    from the root to it, itself included)."""
+    masks = np.zeros((model.njoints, model.nv), dtype=bool)
+    for joint in range(1, model.njoints):
+        for i in model.supports[joint]:
+            if i > 0:
+                start = int(model.joints[i].idx_v)
+                masks[joint, start : start + int(model.joints[i].nv)] = True
+    return masks
+
+
 class PointJacobians:
-    """Speeds of body points along directions, per unit of dq (rows of their Jacobians
-    (3, nv), world axes), at one configuration, each joint's Jacobian read once (a step's
-    rows often share joints); needs ``computeJointJacobians`` there."""
+    """Speeds of body points along directions per unit of dq, at one configuration (rows
+    of the points' Jacobians, world axes); reads the world-frame joint Jacobians ``data.J``
+    of ``computeJointJacobians`` (or ``jacobianCenterOfMass``) there, once. ``masks`` :
+    :func:`support_masks` of the model (computed if not given)."""
 
-    def __init__(self, model: Any, data: Any) -> None:
+    def __init__(self, model: Any, data: Any, masks: NDArray[np.bool_] | None = None) -> None:
         self.model, self.data = model, data
-        self.joints: dict[int, tuple[FloatArray, FloatArray, FloatArray]] = {}
+        self.masks = support_masks(model) if masks is None else masks
+        self._world: FloatArray | None = None
 
-    def _joint(self, joint: int) -> tuple[FloatArray, FloatArray, FloatArray]:
-        cached = self.joints.get(joint)
-        if cached is None:
-            j = pin.getJointJacobian(self.model, self.data, joint, pin.LOCAL_WORLD_ALIGNED)
-            cached = (j[:3], j[3:], np.array(self.data.oMi[joint].translation))
-            self.joints[joint] = cached
-        return cached
-
-    def along(self, joint: int, point: FloatArray, direction: FloatArray) -> FloatArray:
-        """(nv,) ``direction . J(point)``: the speed of the world ``point`` (3,) fixed to
-        ``joint`` along ``direction`` (3,) per unit of dq, without forming J (the point's
-        velocity is v + w x lever, so its component along n is n.v + (lever x n).w)."""
-        linear, angular, origin = self._joint(joint)
-        lever = point - origin
-        twist = np.array(
-            [
-                lever[1] * direction[2] - lever[2] * direction[1],
-                lever[2] * direction[0] - lever[0] * direction[2],
-                lever[0] * direction[1] - lever[1] * direction[0],
-            ]
-        )
-        return np.asarray(direction @ linear + twist @ angular, dtype=np.float64)
+    def along(
+        self, joints: Sequence[int], points: FloatArray, directions: FloatArray
+    ) -> FloatArray:
+        """(r, nv) ``n . J(p)`` for each world point p (r, 3) fixed to its joint (r,) and
+        direction n (r, 3): the column of a joint moving p adds n.v + (p x n).w, with (v, w)
+        that joint's world twist (the velocity of the point at the world origin, and the
+        rotation)."""
+        if self._world is None:
+            self._world = np.array(self.data.J)
+        world = self._world
+        moment = np.cross(points, directions)
+        speeds = directions @ world[:3] + moment @ world[3:]
+        return np.asarray(speeds * self.masks[np.asarray(joints)], dtype=np.float64)
 
 
-def _damper_row(speed: FloatArray, distance: float, security: float) -> tuple[FloatArray, float]:
-    """One row of ``G dq <= h`` for ``n . J dq >= -rate (d - d_s)`` (``speed`` (nv,) is
-    ``n . J``, the approach speed per unit of dq, negated) while the shape is
-    farther than the security distance ``d_s``; closer, it may not approach (a forearm next
-    to the hand on the floor is not pushed up, dragging the held hand off its contact), and
-    a shape inside the scene is pushed out at ``rate * |d|``, capped at ``MAX_PUSH``."""
-    if distance >= security:
-        bound = tuning.DAMPER_RATE * (distance - security)
-    else:
-        bound = min(0.0, tuning.DAMPER_RATE * distance)
-    return -speed, max(bound, -tuning.MAX_PUSH)
+def _damper_rows(
+    speeds: FloatArray, distances: FloatArray, securities: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Rows of ``G dq <= h`` for ``n . J dq >= -rate (d - d_s)`` (``speeds`` (r, nv) are the
+    ``n . J``, approach speeds per unit of dq, negated; ``distances`` d and security
+    distances d_s (r,)) while a shape is farther than d_s; closer, it may not approach (a
+    forearm next to the hand on the floor is not pushed up, dragging the held hand off its
+    contact), and a shape inside the scene is pushed out at ``rate * |d|``, capped at
+    ``MAX_PUSH``."""
+    far = tuning.DAMPER_RATE * (distances - securities)
+    near = np.minimum(0.0, tuning.DAMPER_RATE * distances)
+    bounds = np.where(distances >= securities, far, near)
+    return -speeds, np.maximum(bounds, -tuning.MAX_PUSH)
 
 
 class SceneDistances:
@@ -152,8 +159,10 @@ class SceneDistances:
         """:meth:`settled` with the placements given as :func:`shape_poses` arrays."""
         self.rotations, translations = poses
         self.centres = np.einsum("gab,gb->ga", self.rotations, self.local_centres) + translations
-        shift = np.linalg.norm(self.centres - self.measured_centres, axis=1)
-        turn = np.sqrt(np.sum((self.rotations - self.measured_rotations) ** 2, axis=(1, 2)))
+        moved = self.centres - self.measured_centres
+        shift = np.sqrt((moved * moved).sum(axis=1))
+        turned = self.rotations - self.measured_rotations
+        turn = np.sqrt((turned * turned).sum(axis=(1, 2)))
         return np.asarray(self.measured - shift - turn * self.radii > threshold)
 
     def remember(self, i: int, distance: float) -> None:
@@ -187,6 +196,7 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
         self.skipped: frozenset[int] = frozenset()
         self.light: dict[int, float] = {}
         self.rows = 0
+        self.masks = support_masks(model)
         self.shapes = [
             (i, o.geometry, int(o.parentJoint)) for i, o in enumerate(geometry.geometryObjects)
         ]
@@ -220,7 +230,9 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
         data = configuration.data
         pin.updateGeometryPlacements(self.model, data, self.geometry, self.geometry_data)
         poses = shape_poses(self.geometry_data)
-        return self.rows_at(data, self.geometry_data, poses, PointJacobians(self.model, data))
+        return self.rows_at(
+            data, self.geometry_data, poses, PointJacobians(self.model, data, self.masks)
+        )
 
     def rows_at(
         self, data: Any, geometry_data: Any, poses: Poses, jacobians: PointJacobians
@@ -228,22 +240,22 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
         """The rows of :meth:`compute_qp_inequalities` at the kinematics of ``data`` (joint
         placements and Jacobians), the shape placements ``geometry_data`` and ``poses``
         (:func:`shape_poses`) already computed there."""
-        rows: list[FloatArray] = []
-        bounds: list[float] = []
         self.steps += 1
         oldest = self.steps - tuning.WITNESS_MEMORY
         settled = self.distances.settled_at(poses, tuning.INFLUENCE_DISTANCE)
         placements = geometry_data.oMg
+        # the remembered witnesses of every shape, in order: (joint, scene point, normal,
+        # body point in the joint frame, security distance)
+        witnesses: list[tuple[int, FloatArray, FloatArray, FloatArray, float]] = []
         for i, shape, joint in self.shapes:
             if i in self.skipped:
                 continue
-            security = self.light.get(i, tuning.SECURITY_DISTANCE)
-            frame = data.oMi[joint]
             memory = [m for m in self.memory.get(i, ()) if m[0] > oldest]
             self.memory[i] = memory
             if not memory and settled[i]:
                 continue
             if not settled[i]:
+                frame = data.oMi[joint]
                 nearest = np.inf
                 for d, result in self.distances.each(shape, placements[i]):
                     nearest = min(nearest, d)
@@ -253,18 +265,28 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
                     scene_point = np.array(result.getNearestPoint1())
                     memory.append((self.steps, scene_point, np.array(result.normal), local))
                 self.distances.remember(i, nearest)
-            for _, scene_point, normal, local in memory:
-                point = frame.act(local)
-                d = float(normal @ (point - scene_point))
-                if d > tuning.INFLUENCE_DISTANCE:
-                    continue
-                row, bound = _damper_row(jacobians.along(joint, point, normal), d, security)
-                rows.append(row)
-                bounds.append(bound)
-        self.rows = len(rows)
-        if not rows:
+            security = self.light.get(i, tuning.SECURITY_DISTANCE)
+            witnesses.extend((joint, m[1], m[2], m[3], security) for m in memory)
+        self.rows = 0
+        if not witnesses:
             return None
-        return np.vstack(rows), np.asarray(bounds, dtype=np.float64)
+        joints = np.array([w[0] for w in witnesses])
+        scene_points = np.array([w[1] for w in witnesses])
+        normals = np.array([w[2] for w in witnesses])
+        locals_ = np.array([w[3] for w in witnesses])
+        securities = np.array([w[4] for w in witnesses])
+        frames = {j: data.oMi[j] for j in set(joints.tolist())}
+        rotations = np.array([frames[j].rotation for j in joints.tolist()])
+        origins = np.array([frames[j].translation for j in joints.tolist()])
+        points = np.einsum("rab,rb->ra", rotations, locals_) + origins
+        distances = np.einsum("ra,ra->r", normals, points - scene_points)
+        keep = distances <= tuning.INFLUENCE_DISTANCE
+        if not keep.any():
+            return None
+        speeds = jacobians.along(joints[keep], points[keep], normals[keep])
+        rows, bounds = _damper_rows(speeds, distances[keep], securities[keep])
+        self.rows = len(rows)
+        return rows, bounds
 
 
 class PairBroadPhase:
@@ -318,8 +340,10 @@ class PairBroadPhase:
         centres = np.einsum("gab,gb->ga", rot, self.middles) + trans
         if self.last is not None:
             last_rot, last_centres = self.last
-            turn = np.sqrt(np.sum((rot - last_rot) ** 2, axis=(1, 2)))
-            self.odometer += np.linalg.norm(centres - last_centres, axis=1) + turn * self.spheres
+            turned = rot - last_rot
+            turn = np.sqrt((turned * turned).sum(axis=(1, 2)))
+            moved = centres - last_centres
+            self.odometer += np.sqrt((moved * moved).sum(axis=1)) + turn * self.spheres
         self.last = (rot, centres)
         run = self.odometer[self.pair_array] - self.known_odometers
         open_ = np.flatnonzero(self.known - run[:, 0] - run[:, 1] <= margin)
@@ -357,6 +381,7 @@ class SelfClearance(Limit):  # type: ignore[misc]
         self.joints = [int(o.parentJoint) for o in geometry.geometryObjects]
         self.broad = PairBroadPhase(geometry)
         self.rows = 0
+        self.masks = support_masks(model)
 
     def compute_qp_inequalities(
         self, configuration: Any, dt: float
@@ -366,7 +391,7 @@ class SelfClearance(Limit):  # type: ignore[misc]
         data = configuration.data
         pin.updateGeometryPlacements(self.model, data, self.geometry, self.geometry_data)
         poses = shape_poses(self.geometry_data)
-        return self.rows_at(self.geometry_data, poses, PointJacobians(self.model, data))
+        return self.rows_at(self.geometry_data, poses, PointJacobians(self.model, data, self.masks))
 
     def rows_at(
         self, geometry_data: Any, poses: Poses, jacobians: PointJacobians
@@ -375,8 +400,12 @@ class SelfClearance(Limit):  # type: ignore[misc]
         ``geometry_data`` (its distance requests signed) and ``poses`` (:func:`shape_poses`),
         with ``jacobians`` read at the same kinematics."""
         near = self.broad.near_at(poses, tuning.INFLUENCE_DISTANCE)
-        rows: list[FloatArray] = []
-        bounds: list[float] = []
+        # per pair within the influence distance: its joints, witness points, normal (from
+        # a to b) and distance
+        joints: list[int] = []
+        points: list[FloatArray] = []
+        normals: list[FloatArray] = []
+        distances: list[float] = []
         for k in near:
             a, b = self.pairs[k]
             pin.computeDistance(self.geometry, geometry_data, k)
@@ -385,13 +414,16 @@ class SelfClearance(Limit):  # type: ignore[misc]
             self.broad.remember(k, d)
             if d > tuning.INFLUENCE_DISTANCE:
                 continue
+            joints += [self.joints[a], self.joints[b]]
+            points += [np.array(result.getNearestPoint1()), np.array(result.getNearestPoint2())]
             normal = np.array(result.normal)
-            speed_a = jacobians.along(self.joints[a], np.array(result.getNearestPoint1()), normal)
-            speed_b = jacobians.along(self.joints[b], np.array(result.getNearestPoint2()), normal)
-            row, bound = _damper_row(speed_b - speed_a, d, tuning.SECURITY_DISTANCE)
-            rows.append(row)
-            bounds.append(bound)
-        self.rows = len(rows)
-        if not rows:
+            normals += [normal, normal]
+            distances.append(d)
+        self.rows = len(distances)
+        if not distances:
             return None
-        return np.vstack(rows), np.asarray(bounds, dtype=np.float64)
+        speeds = jacobians.along(joints, np.array(points), np.array(normals))
+        gap = np.array(distances)
+        return _damper_rows(
+            speeds[1::2] - speeds[0::2], gap, np.full(len(gap), tuning.SECURITY_DISTANCE)
+        )

@@ -19,10 +19,12 @@ back in the cost, then skipped (the body holds still).
 
 from __future__ import annotations
 
+import ctypes
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import daqp
 import numpy as np
 import pinocchio as pin
 import qpsolvers
@@ -38,10 +40,13 @@ from planner.motion.clearance import (
     SceneClearance,
     SelfClearance,
     shape_poses,
+    support_masks,
 )
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
+
+_DAQP_EQUALITY = 5  # daqp's constraint sense of an equality row
 
 
 @dataclass(frozen=True, slots=True)
@@ -216,7 +221,8 @@ class WholeBodyTracker:
         self._stamp = 0
         self._placed = -1
         self._poses: Poses = (np.zeros((0, 3, 3)), np.zeros((0, 3)))
-        self._jacobians = PointJacobians(model, self.data)
+        self._masks = support_masks(model)
+        self._jacobians = PointJacobians(model, self.data, self._masks)
 
     def trunk_rotation(self, posture: FloatArray, level: bool = True) -> FloatArray:
         """(3, 3) trunk orientation aimed at from a planned configuration (nq,): with
@@ -399,7 +405,7 @@ class WholeBodyTracker:
                     self.model, self.data, self.character.motion_geometry, self.geometry_data
                 )
                 self._poses = shape_poses(self.geometry_data)
-                self._jacobians = PointJacobians(self.model, self.data)
+                self._jacobians = PointJacobians(self.model, self.data, self._masks)
                 self._placed = self._stamp
             for rows in (
                 self.scene.rows_at(self.data, self.geometry_data, self._poses, self._jacobians),
@@ -416,25 +422,60 @@ class WholeBodyTracker:
         """The QP of the step over dq: the cost ``qp``, :meth:`inequalities`, and the
         ``rigid`` limbs' stance held exactly, ``J_c dq = -e_c`` (position rows only for a
         point contact)."""
-        g, h = self.inequalities(dt, dampers, root_bounded)
-        a = b = None
-        if rigid:
-            keeps = [self._rigid_keep[limb] for limb in rigid]
-            a = np.vstack([qp.held[limb][0][keep] for limb, keep in zip(rigid, keeps, strict=True)])
-            b = np.concatenate(
-                [
-                    -tuning.TASK_GAIN * qp.held[limb][1][keep]
-                    for limb, keep in zip(rigid, keeps, strict=True)
-                ]
-            )
+        g, h, a, b = self._constraints(qp, dt, dampers, root_bounded, rigid)
         return qpsolvers.Problem(qp.hessian, qp.linear, g, h, a, b)
+
+    def _constraints(
+        self, qp: StepQP, dt: float, dampers: bool, root_bounded: bool, rigid: Sequence[str]
+    ) -> tuple[FloatArray, FloatArray, FloatArray | None, FloatArray | None]:
+        """G, h, A, b of :meth:`problem` (A, b None without rigid limbs)."""
+        g, h = self.inequalities(dt, dampers, root_bounded)
+        if not rigid:
+            return g, h, None, None
+        keeps = [self._rigid_keep[limb] for limb in rigid]
+        a = np.vstack([qp.held[limb][0][keep] for limb, keep in zip(rigid, keeps, strict=True)])
+        b = np.concatenate(
+            [
+                -tuning.TASK_GAIN * qp.held[limb][1][keep]
+                for limb, keep in zip(rigid, keeps, strict=True)
+            ]
+        )
+        return g, h, a, b
 
     def _solve(
         self, qp: StepQP, dt: float, dampers: bool, root_bounded: bool, rigid: Sequence[str]
     ) -> FloatArray | None:
         """The QP's velocity (nv,) rad/s or m/s, or None when it has no solution."""
-        problem = self.problem(qp, dt, dampers, root_bounded, rigid)
-        result = qpsolvers.solve_problem(problem, solver=tuning.QP_SOLVER)
-        if not result.found or result.x is None:
+        if tuning.QP_SOLVER == "daqp":
+            g, h, a, b = self._constraints(qp, dt, dampers, root_bounded, rigid)
+            x = _solve_daqp(qp.hessian, qp.linear, g, h, a, b)
+        else:
+            problem = self.problem(qp, dt, dampers, root_bounded, rigid)
+            result = qpsolvers.solve_problem(problem, solver=tuning.QP_SOLVER)
+            x = result.x if result.found else None
+        if x is None:
             return None
-        return np.asarray(result.x, dtype=np.float64) / dt
+        return np.asarray(x, dtype=np.float64) / dt
+
+
+def _solve_daqp(
+    hessian: FloatArray,
+    linear: FloatArray,
+    g: FloatArray,
+    h: FloatArray,
+    a: FloatArray | None,
+    b: FloatArray | None,
+) -> FloatArray | None:
+    """The minimiser (n,) of 1/2 x' H x + c' x subject to G x <= h and A x = b (if given)
+    by daqp, or None: the call qpsolvers makes, without its bookkeeping (a control step's
+    QP takes a few microseconds)."""
+    if a is not None and b is not None and len(a):
+        constraints = np.vstack([g, a])
+        upper = np.concatenate([h, b])
+    else:
+        constraints, upper = g, h
+    sense = np.zeros(len(upper), dtype=ctypes.c_int)
+    sense[len(h) :] = _DAQP_EQUALITY
+    lower = np.full(len(upper), -1e30)
+    x, _, exitflag, _ = daqp.solve(hessian, linear, constraints, upper, lower, sense)
+    return np.asarray(x, dtype=np.float64) if exitflag > 0 else None
