@@ -49,15 +49,31 @@ def shape_poses(geometry_data: Any) -> Poses:
     )
 
 
+_MASKS: dict[int, tuple[Any, NDArray[np.bool_]]] = {}
+
+# e_ijk: (a x b)_i = e_ijk a_j b_k
+_LEVI_CIVITA = np.zeros((3, 3, 3))
+for _i, _j, _k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+    _LEVI_CIVITA[_i, _j, _k], _LEVI_CIVITA[_i, _k, _j] = 1.0, -1.0
+
+
 def support_masks(model: Any) -> NDArray[np.bool_]:
     """(njoints, nv) per joint, the velocity coordinates that move it (those of the joints
-    from the root to it, itself included)."""
+    from the root to it, itself included); computed once per model (read-only)."""
+    cached = _MASKS.get(id(model))
+    if cached is not None and cached[0] is model:
+        return cached[1]
     masks = np.zeros((model.njoints, model.nv), dtype=bool)
-    for joint in range(1, model.njoints):
-        for i in model.supports[joint]:
-            if i > 0:
-                start = int(model.joints[i].idx_v)
-                masks[joint, start : start + int(model.joints[i].nv)] = True
+    parents = list(model.parents)
+    joints = list(model.joints)
+    for joint in range(1, model.njoints):  # a parent's index is below its children's
+        masks[joint] = masks[parents[joint]]
+        start = int(joints[joint].idx_v)
+        masks[joint, start : start + int(joints[joint].nv)] = True
+    masks.flags.writeable = False
+    if len(_MASKS) > 64:
+        _MASKS.clear()
+    _MASKS[id(model)] = (model, masks)
     return masks
 
 
@@ -82,7 +98,7 @@ class PointJacobians:
         if self._world is None:
             self._world = np.array(self.data.J)
         world = self._world
-        moment = np.cross(points, directions)
+        moment = np.einsum("ijk,rj,rk->ri", _LEVI_CIVITA, points, directions)  # p x n
         speeds = directions @ world[:3] + moment @ world[3:]
         return np.asarray(speeds * self.masks[np.asarray(joints)], dtype=np.float64)
 
@@ -316,6 +332,9 @@ class PairBroadPhase:
         # per shape: bounding sphere (its capsule's middle in its frame, radius), odometer (m)
         # and the placement of the last query
         self.middles = (self.ends_a + self.ends_b) / 2.0
+        # per shape, its middle and its capsule's ends, (G, 3, 3) in its frame: one product
+        # places them all
+        self.local_points = np.stack([self.middles, self.ends_a, self.ends_b], axis=1)
         self.spheres = r + np.linalg.norm(self.ends_b - self.ends_a, axis=1) / 2.0
         self.odometer = np.zeros(len(r))
         self.last: tuple[FloatArray, FloatArray] | None = None
@@ -337,22 +356,23 @@ class PairBroadPhase:
         if len(self.pair_array) == 0:
             return []
         rot, trans = poses
-        centres = np.einsum("gab,gb->ga", rot, self.middles) + trans
+        world = np.einsum("gab,gkb->gka", rot, self.local_points)
+        world += trans[:, None, :]
+        centres = world[:, 0]
         if self.last is not None:
             last_rot, last_centres = self.last
             turned = rot - last_rot
-            turn = np.sqrt((turned * turned).sum(axis=(1, 2)))
             moved = centres - last_centres
-            self.odometer += np.sqrt((moved * moved).sum(axis=1)) + turn * self.spheres
+            self.odometer += np.sqrt(np.einsum("ga,ga->g", moved, moved))
+            self.odometer += np.sqrt(np.einsum("gab,gab->g", turned, turned)) * self.spheres
         self.last = (rot, centres)
         run = self.odometer[self.pair_array] - self.known_odometers
-        open_ = np.flatnonzero(self.known - run[:, 0] - run[:, 1] <= margin)
+        open_ = np.flatnonzero(self.known - run.sum(axis=1) <= margin)
         if len(open_) == 0:
             return []
-        a, b = self.pair_array[open_, 0], self.pair_array[open_, 1]
-        world_a = np.einsum("gab,gb->ga", rot, self.ends_a) + trans
-        world_b = np.einsum("gab,gb->ga", rot, self.ends_b) + trans
-        gaps = segment_distances(world_a[a], world_b[a], world_a[b], world_b[b])
+        pairs = self.pair_array[open_]
+        first, second = world[pairs[:, 0]], world[pairs[:, 1]]
+        gaps = segment_distances(first[:, 1], first[:, 2], second[:, 1], second[:, 2])
         gaps -= self.radii_sum[open_]
         far = gaps > margin
         done = open_[far]

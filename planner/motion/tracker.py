@@ -195,11 +195,13 @@ class WholeBodyTracker:
         self._config_gain = float(config.config_limit_gain)
         self._g_limits: dict[bool, FloatArray] = {}
         self._speeds: dict[bool, FloatArray] = {}
+        self._speed_index: dict[bool, IntArray] = {}
         for bounded in (False, True):
             velocity = VelocityLimit(model, speed_limits(model, root_bounded=bounded))
             self._speeds[bounded] = np.asarray(
                 velocity.velocity_limit[velocity.indices], dtype=np.float64
             )
+            self._speed_index[bounded] = np.asarray(velocity.indices, dtype=np.int64)
             blocks = [config.projection_matrix, velocity.projection_matrix]
             self._g_limits[bounded] = np.vstack(
                 [x for m in blocks if m is not None for x in (m, -m)]
@@ -212,10 +214,11 @@ class WholeBodyTracker:
         self._bounded = np.arange(root_nq, model.nq)
         self._lower = np.asarray(model.lowerPositionLimit[root_nq:], dtype=np.float64)
         self._upper = np.asarray(model.upperPositionLimit[root_nq:], dtype=np.float64)
-        nv = model.nv
-        self._diagonal = (np.arange(nv), np.arange(nv))
-        joints = np.arange(self._root_nv, nv)
-        self._posture_diagonal = (joints, joints)
+        # the cost's constant diagonal: the posture task's weight on the joints (its
+        # Jacobian is the identity there) and the damping everywhere
+        diagonal = np.full(model.nv, tuning.DAMPING)
+        diagonal[self._root_nv :] += tuning.POSTURE_COST * tuning.POSTURE_COST
+        self._diagonal_terms = np.diag(diagonal)
         self.q = pin.neutral(model)
         # kinematics stamps: of the last objective, of the last shape placements
         self._stamp = 0
@@ -229,12 +232,13 @@ class WholeBodyTracker:
         ``level``, its yaw, and its pitch only for a character whose trunk may pitch (a
         hexapod on a slope), never a roll; otherwise its own orientation. Memoised per
         posture (a phase keeps its posture for many steps)."""
-        rotation = pin.Quaternion(posture[3:7]).toRotationMatrix()
         if not level:
+            rotation = pin.Quaternion(posture[3:7]).toRotationMatrix()
             return np.asarray(rotation, dtype=np.float64)
         key = posture[3:7].tobytes()
         cached = self._trunk_cache.get(key)
         if cached is None:
+            rotation = pin.Quaternion(posture[3:7]).toRotationMatrix()
             yaw, pitch, _ = Rotation.from_matrix(rotation).as_euler("ZYX")
             if self.character.max_pitch <= tuning.LEVEL_TRUNK_PITCH:
                 pitch = 0.0
@@ -286,7 +290,7 @@ class WholeBodyTracker:
         ``FAST_SUBSTEPS``): the gentle trunk and posture pulls, which are fractions per step,
         are scaled so that they converge as fast per second as with nominal steps."""
         q = np.array(q, dtype=np.float64)
-        q[self._bounded] = np.clip(q[self._bounded], self._lower, self._upper)
+        q[self._bounded] = np.minimum(np.maximum(q[self._bounded], self._lower), self._upper)
         if targets.exact_com:
             q = self._onto_com(q, targets.com)
         qp = self.objective(q, targets, share)
@@ -359,12 +363,11 @@ class WholeBodyTracker:
         reach = tuning.POSTURE_MAX_ERROR * share
         joints = slice(self._bounded[0], None)
         aim = q.copy()
-        aim[joints] = q[joints] + np.clip(posture[joints] - q[joints], -reach, reach)
+        aim[joints] = q[joints] + np.minimum(np.maximum(posture[joints] - q[joints], -reach), reach)
         gain = 1.0 - (1.0 - tuning.POSTURE_GAIN) ** share
         pull = pin.difference(model, aim, q)[self._root_nv :]
         weight = tuning.POSTURE_COST * tuning.POSTURE_COST
-        hessian[self._posture_diagonal] += weight
-        hessian[self._diagonal] += tuning.DAMPING
+        hessian += self._diagonal_terms
         linear[self._root_nv :] += weight * gain * pull
         self.scene.set_phase(frozenset(skipped), light)
         return StepQP(hessian, linear, held)
@@ -400,21 +403,47 @@ class WholeBodyTracker:
         g_blocks = [self._g_limits[root_bounded]]
         h_blocks = [h_config, dt * speeds, dt * speeds]
         if dampers:
-            if self._placed != self._stamp:
-                pin.updateGeometryPlacements(
-                    self.model, self.data, self.character.motion_geometry, self.geometry_data
-                )
-                self._poses = shape_poses(self.geometry_data)
-                self._jacobians = PointJacobians(self.model, self.data, self._masks)
-                self._placed = self._stamp
-            for rows in (
-                self.scene.rows_at(self.data, self.geometry_data, self._poses, self._jacobians),
-                self.self_clearance.rows_at(self.geometry_data, self._poses, self._jacobians),
-            ):
-                if rows is not None:
-                    g_blocks.append(rows[0])
-                    h_blocks.append(rows[1])
+            for g, h in self._damper_rows():
+                g_blocks.append(g)
+                h_blocks.append(h)
         return np.vstack(g_blocks), np.concatenate(h_blocks)
+
+    def _bounds(self, dt: float, root_bounded: bool) -> tuple[FloatArray, FloatArray]:
+        """The joint position and speed limit rows of :meth:`inequalities` (rows of the
+        identity) as bounds on dq: lower (nv,), upper (nv,), +-1e30 where unbounded."""
+        q, model = self.q, self.model
+        gain = self._config_gain
+        step = dt * self._speeds[root_bounded]
+        upper = np.full(model.nv, 1e30)
+        lower = np.full(model.nv, -1e30)
+        speed = self._speed_index[root_bounded]
+        upper[speed] = step
+        lower[speed] = -step
+        config = self._config
+        reach = gain * pin.difference(model, q, model.upperPositionLimit)[config]
+        upper[config] = np.minimum(upper[config], reach)
+        reach = gain * pin.difference(model, q, model.lowerPositionLimit)[config]
+        lower[config] = np.maximum(lower[config], reach)
+        return lower, upper
+
+    def _damper_rows(self) -> list[tuple[FloatArray, FloatArray]]:
+        """The scene then self-collision damper rows (G, h) at the kinematics of the last
+        :meth:`objective` (the shape placements computed once per step)."""
+        if self._placed != self._stamp:
+            pin.updateGeometryPlacements(
+                self.model, self.data, self.character.motion_geometry, self.geometry_data
+            )
+            self._poses = shape_poses(self.geometry_data)
+            self._jacobians = PointJacobians(self.model, self.data, self._masks)
+            self._placed = self._stamp
+        out = []
+        for rows in (
+            self.scene.rows_at(self.data, self.geometry_data, self._poses, self._jacobians),
+            self.self_clearance.rows_at(self.geometry_data, self._poses, self._jacobians),
+        ):
+            if rows is not None:
+                out.append(rows)
+        return out
 
     def problem(
         self, qp: StepQP, dt: float, dampers: bool, root_bounded: bool, rigid: Sequence[str]
@@ -445,10 +474,23 @@ class WholeBodyTracker:
     def _solve(
         self, qp: StepQP, dt: float, dampers: bool, root_bounded: bool, rigid: Sequence[str]
     ) -> FloatArray | None:
-        """The QP's velocity (nv,) rad/s or m/s, or None when it has no solution."""
+        """The QP's velocity (nv,) rad/s or m/s, or None when it has no solution. With daqp,
+        the QP of :meth:`problem` with its limit rows (rows of the identity) given as bounds
+        on dq, which daqp handles without forming them."""
         if tuning.QP_SOLVER == "daqp":
-            g, h, a, b = self._constraints(qp, dt, dampers, root_bounded, rigid)
-            x = _solve_daqp(qp.hessian, qp.linear, g, h, a, b)
+            lower, upper = self._bounds(dt, root_bounded)
+            rows = self._damper_rows() if dampers else []
+            if rigid:
+                keeps = [self._rigid_keep[limb] for limb in rigid]
+                a = np.vstack([qp.held[limb][0][k] for limb, k in zip(rigid, keeps, strict=True)])
+                b = np.concatenate(
+                    [
+                        -tuning.TASK_GAIN * qp.held[limb][1][k]
+                        for limb, k in zip(rigid, keeps, strict=True)
+                    ]
+                )
+                rows.append((a, b))
+            x = _solve_daqp(qp.hessian, qp.linear, lower, upper, rows, len(a) if rigid else 0)
         else:
             problem = self.problem(qp, dt, dampers, root_bounded, rigid)
             result = qpsolvers.solve_problem(problem, solver=tuning.QP_SOLVER)
@@ -461,21 +503,25 @@ class WholeBodyTracker:
 def _solve_daqp(
     hessian: FloatArray,
     linear: FloatArray,
-    g: FloatArray,
-    h: FloatArray,
-    a: FloatArray | None,
-    b: FloatArray | None,
+    lower: FloatArray,
+    upper: FloatArray,
+    rows: Sequence[tuple[FloatArray, FloatArray]],
+    equalities: int,
 ) -> FloatArray | None:
-    """The minimiser (n,) of 1/2 x' H x + c' x subject to G x <= h and A x = b (if given)
-    by daqp, or None: the call qpsolvers makes, without its bookkeeping (a control step's
-    QP takes a few microseconds)."""
-    if a is not None and b is not None and len(a):
-        constraints = np.vstack([g, a])
-        upper = np.concatenate([h, b])
+    """The minimiser x (n,) of 1/2 x' H x + c' x subject to ``lower <= x <= upper`` (n,) and
+    G x <= h for each (G, h) of ``rows``, the last ``equalities`` of those rows equalities
+    G x = h, by daqp; None when it finds none."""
+    n = len(linear)
+    if rows:
+        constraints = np.vstack([g for g, _ in rows])
+        bound = np.concatenate([upper, *(h for _, h in rows)])
     else:
-        constraints, upper = g, h
-    sense = np.zeros(len(upper), dtype=ctypes.c_int)
-    sense[len(h) :] = _DAQP_EQUALITY
-    lower = np.full(len(upper), -1e30)
-    x, _, exitflag, _ = daqp.solve(hessian, linear, constraints, upper, lower, sense)
+        constraints = np.zeros((0, n))
+        bound = upper
+    floor = np.full(len(bound), -1e30)
+    floor[:n] = lower
+    sense = np.zeros(len(bound), dtype=ctypes.c_int)
+    if equalities:
+        sense[len(bound) - equalities :] = _DAQP_EQUALITY
+    x, _, exitflag, _ = daqp.solve(hessian, linear, constraints, bound, floor, sense)
     return np.asarray(x, dtype=np.float64) if exitflag > 0 else None
