@@ -413,7 +413,7 @@ def build_motion(
     collides, lets a stance contact slip, or moves the root faster than
     ``MAX_ROOT_SPEED`` between two keyframes; the report says ``abandoned``."""
     tracker = WholeBodyTracker(character, scene_bvh, obstacles)
-    checker = KeyframeChecker(character, scene_bvh, obstacles)
+    checker = KeyframeChecker(character, scene_bvh, obstacles, tracker)
     targets = _Targets(character, spec)
     grid = keyframe_grid(spec.phases[0].t0, spec.phases[-1].t1, spec.rate).tolist()
     groups: list[list[float]] = []

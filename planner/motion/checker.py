@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from planner.character import Character
 from planner.motion import tuning
 from planner.motion.clearance import PairBroadPhase, SceneDistances, shape_poses
-from planner.motion.tracker import effector_geometries
+from planner.motion.tracker import WholeBodyTracker, effector_geometries
 
 if TYPE_CHECKING:
     from planner.contact.state import LimbContact
@@ -54,10 +54,16 @@ class KeyframeCheck:
 
 class KeyframeChecker:
     """Checks keyframes of one character in one scene (``obstacles``: (coal geometry,
-    coal.Transform3s) pairs). Not thread-safe: one per thread."""
+    coal.Transform3s) pairs). Not thread-safe: one per thread. Given the ``tracker`` of the
+    same character, scene and obstacles, it shares its distance bounds (a keyframe is where
+    the tracker's next control step starts: most of its queries are answered then)."""
 
     def __init__(
-        self, character: Character, scene_bvh: Any, obstacles: Sequence[tuple[Any, Any]] = ()
+        self,
+        character: Character,
+        scene_bvh: Any,
+        obstacles: Sequence[tuple[Any, Any]] = (),
+        tracker: WholeBodyTracker | None = None,
     ) -> None:
         self.character = character
         self.model = character.model
@@ -66,8 +72,14 @@ class KeyframeChecker:
         self.geometry_data = pin.GeometryData(self.geometry)
         for request in self.geometry_data.distanceRequests:
             request.enable_signed_distance = True
-        self.distances = SceneDistances(scene_bvh, obstacles, self.geometry)
-        self.broad = PairBroadPhase(self.geometry)
+        # with a ``tracker`` of the same character, scene and obstacles, its distance bounds
+        # are shared (each remembers exact lower bounds, whoever measured them)
+        if tracker is None:
+            self.distances = SceneDistances(scene_bvh, obstacles, self.geometry)
+            self.broad = PairBroadPhase(self.geometry)
+        else:
+            self.distances = tracker.scene.distances
+            self.broad = tracker.self_clearance.broad
         self.effectors = effector_geometries(character)
         self.shapes = [
             (i, o.geometry, str(o.name)) for i, o in enumerate(self.geometry.geometryObjects)

@@ -18,6 +18,7 @@ from planner.contact.context import make_context
 from planner.kinematics import com_position
 from planner.motion import tuning
 from planner.motion.builder import _Targets
+from planner.motion.checker import KeyframeChecker
 from planner.motion.spec import MotionPhase, MotionSpec, Swing
 from planner.motion.tracker import WholeBodyTracker
 from tests.planner.contact.contact_helpers import character_and_data, scene
@@ -95,3 +96,19 @@ def test_a_flight_target_gives_the_same_qp() -> None:
     pinks = reference.problem(q, aim, 0.01, share=0.5)
     for name in ("P", "q", "G", "h", "A", "b"):
         _same(getattr(ours, name), getattr(pinks, name), name)
+
+
+def test_a_checker_sharing_the_trackers_bounds_checks_as_one_of_its_own() -> None:
+    ctx, spec = _spec(False)
+    bvh = ctx.scene.collision.bvh
+    tracker = WholeBodyTracker(ctx.character, bvh)
+    shared = KeyframeChecker(ctx.character, bvh, tracker=tracker)
+    alone = KeyframeChecker(ctx.character, bvh)
+    targets = _Targets(ctx.character, spec)
+    stance = spec.phases[0].stance
+    q = np.array(spec.q_start)
+    dt = 1.0 / 90.0
+    for k in range(1, 72):
+        q = tracker.step(q, targets.at(k * dt), dt)
+        if k % 3 == 0:
+            assert shared.check(q, stance) == alone.check(q, stance)
