@@ -263,9 +263,11 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
         # the remembered witnesses of every shape, in order: (joint, scene point, normal,
         # body point in the joint frame, security distance)
         witnesses: list[tuple[int, FloatArray, FloatArray, FloatArray, float]] = []
-        for i, shape, joint in self.shapes:
-            if i in self.skipped:
-                continue
+        # only shapes near the scene or with witnesses to remember need a look
+        active = set(np.flatnonzero(~settled).tolist())
+        active.update(i for i, m in self.memory.items() if m)
+        for i in sorted(active - self.skipped):
+            _, shape, joint = self.shapes[i]
             memory = [m for m in self.memory.get(i, ()) if m[0] > oldest]
             self.memory[i] = memory
             if not memory and settled[i]:
