@@ -5,10 +5,11 @@ Usage: ``python bench/tracker.py [--repeats 5] [--plans NAME ...]``. Plays the c
 ``tests/scenarios/steps/chair_humanoid.json`` once, recording its motion builds and the
 control steps of their tracker, then prints medians of CPU time (``time.process_time``):
 
-- per control step, the tracker's own QP assembly (``objective`` + ``problem``) against
-  pink's ``build_ik`` on the same tasks and limits (``tests/planner/motion/pink_reference``),
-  each followed by the same daqp solve: the measured comparison the project asks for
-  before replacing pink;
+- per control step, the tracker's own QP assembly and solve (``objective`` + ``_solve``:
+  daqp called directly, limits as bounds) against pink's ``build_ik`` on the same tasks
+  and limits (``tests/planner/motion/pink_reference``) solved by qpsolvers' daqp, both
+  with the same collision dampers: the measured comparison the project asks for before
+  replacing pink;
 - per Twister move, the recorded builds replayed (``build_motion`` alone);
 - per plan (``tests/scenarios/plans/``, default flat_walk_humanoid and stairs_humanoid): the
   whole planning call and the builder's share, each per second of animation (target
@@ -98,8 +99,7 @@ def _per_step(call: Call, steps: list[tuple[Any, ...]]) -> tuple[float, float]:
     for q, targets, dt, share in steps:
         start = time.process_time()
         qp = ours.objective(q, targets, share)
-        problem = ours.problem(qp, dt, True, targets.root_bounded, [])
-        qpsolvers.solve_problem(problem, solver=tuning.QP_SOLVER)
+        ours._solve(qp, dt, True, targets.root_bounded, [])
         own_ms.append(1000.0 * (time.process_time() - start))
         start = time.process_time()
         twin.scene.set_phase(ours.scene.skipped, ours.scene.light)
@@ -150,7 +150,7 @@ def main() -> None:
         pink = statistics.median(p[1] for p in pairs)
         print(
             f"per control step ({len(steps)} steps of move 1, median of {args.repeats}): "
-            f"own QP assembly + daqp {own:.3f} ms, pink build_ik + daqp {pink:.3f} ms "
+            f"own QP assembly + solve {own:.3f} ms, pink build_ik + solve {pink:.3f} ms "
             f"(x{pink / own:.2f})"
         )
         counts = [len(_control_steps(m)) for m in moves]
