@@ -67,20 +67,24 @@ class KeyframeChecker:
     ) -> None:
         self.character = character
         self.model = character.model
-        self.data = self.model.createData()
         self.geometry = character.motion_geometry
+        # with a ``tracker`` of the same character, scene and obstacles, its kinematics
+        # buffers (each step recomputes them) and its distance bounds (exact lower bounds,
+        # whoever measured them) are shared; not its pair distance buffers (coal starts
+        # from their last results: sharing them changes the tracker's witnesses slightly)
         self.geometry_data = pin.GeometryData(self.geometry)
         for request in self.geometry_data.distanceRequests:
             request.enable_signed_distance = True
-        # with a ``tracker`` of the same character, scene and obstacles, its distance bounds
-        # are shared (each remembers exact lower bounds, whoever measured them)
         if tracker is None:
+            self.data = self.model.createData()
             self.distances = SceneDistances(scene_bvh, obstacles, self.geometry)
             self.broad = PairBroadPhase(self.geometry)
+            self.effectors = effector_geometries(character)
         else:
+            self.data = tracker.data
             self.distances = tracker.scene.distances
             self.broad = tracker.self_clearance.broad
-        self.effectors = effector_geometries(character)
+            self.effectors = tracker.effectors
         self.shapes = [
             (i, o.geometry, str(o.name)) for i, o in enumerate(self.geometry.geometryObjects)
         ]
