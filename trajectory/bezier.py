@@ -11,8 +11,11 @@ from functools import lru_cache
 from math import comb
 
 import numpy as np
+from numpy.typing import NDArray
 
 from trajectory._types import FloatArray, as_float_array
+
+IntArray = NDArray[np.int64]
 
 _TIME_TOL = 1e-12
 
@@ -22,6 +25,16 @@ def _binomials(n: int) -> FloatArray:
     out = np.array([comb(n, k) for k in range(n + 1)], dtype=np.float64)
     out.flags.writeable = False
     return out
+
+
+@lru_cache(maxsize=64)
+def _exponents(n: int) -> tuple[IntArray, IntArray]:
+    """(n + 1,) exponents k and n - k of the Bernstein basis of degree n."""
+    k = np.arange(n + 1)
+    rest = n - k
+    k.flags.writeable = False
+    rest.flags.writeable = False
+    return k, rest
 
 
 def bernstein(n: int, s: FloatArray) -> FloatArray:
@@ -72,6 +85,16 @@ class BezierCurve:
         if tt.min() < self.t0 - slack or tt.max() > self.t1 + slack:
             raise ValueError(f"t: out of range [{self.t0}, {self.t1}]")
         out: FloatArray = np.clip((tt - self.t0) / span, 0.0, 1.0)
+        return out
+
+    def at(self, t: float) -> FloatArray:
+        """The point (d,) at one time ``t`` in [t0, t1] (unchecked): ``self(t)`` with the same
+        arithmetic, without the array bookkeeping (a tracker evaluates one time per step)."""
+        s = min(max((t - self.t0) / (self.t1 - self.t0), 0.0), 1.0)
+        n = self.degree
+        k, rest = _exponents(n)
+        basis = _binomials(n) * s**k * (1.0 - s) ** rest
+        out: FloatArray = (basis[None, :] @ self.control_points)[0]
         return out
 
     def __call__(self, t: float | FloatArray) -> FloatArray:
@@ -170,7 +193,7 @@ class PiecewiseBezier:
                 raise ValueError(f"t: out of range [{self.t0}, {self.t1}]")
             i = min(max(bisect.bisect_right(self._starts, x) - 1, 0), len(self.segments) - 1)
             seg = self.segments[i]
-            point: FloatArray = seg(np.array([min(max(x, seg.t0), seg.t1)]))[0]
+            point = seg.at(min(max(x, seg.t0), seg.t1))
             return point
         tt = np.atleast_1d(np.asarray(t, dtype=np.float64))
         if np.any(tt < self.t0 - 1e-12) or np.any(tt > self.t1 + 1e-12):

@@ -224,25 +224,33 @@ def bounding_segment(geom: Any) -> tuple[FloatArray, FloatArray, float]:
     return end_a, end_b, radius
 
 
+def _unit_clip(x: FloatArray) -> FloatArray:
+    """``x`` clipped to [0, 1] (NaN stays NaN)."""
+    return np.minimum(np.maximum(x, 0.0), 1.0)
+
+
 def segment_distances(p1: FloatArray, q1: FloatArray, p2: FloatArray, q2: FloatArray) -> FloatArray:
     """(...,) distances between segments [p1, q1] and [p2, q2] given as (..., 3) arrays."""
     eps = 1e-12
     d1, d2, r = q1 - p1, q2 - p2, p1 - p2
-    a = np.sum(d1 * d1, axis=-1)
-    e = np.sum(d2 * d2, axis=-1)
-    b = np.sum(d1 * d2, axis=-1)
-    c = np.sum(d1 * r, axis=-1)
-    f = np.sum(d2 * r, axis=-1)
+    a = (d1 * d1).sum(axis=-1)
+    e = (d2 * d2).sum(axis=-1)
+    b = (d1 * d2).sum(axis=-1)
+    c = (d1 * r).sum(axis=-1)
+    f = (d2 * r).sum(axis=-1)
     a_safe, e_safe = np.maximum(a, eps), np.maximum(e, eps)
     denom = a * e - b * b
-    s = np.where(denom > eps, np.clip((b * f - c * e) / np.maximum(denom, eps), 0.0, 1.0), 0.0)
+    # np.minimum(np.maximum(x, 0), 1) is np.clip(x, 0, 1), several times cheaper on small
+    # arrays (this runs in every control step's broad phase)
+    unit = _unit_clip
+    s = np.where(denom > eps, unit((b * f - c * e) / np.maximum(denom, eps)), 0.0)
     t = (b * s + f) / e_safe
     low, high = t < 0.0, t > 1.0
-    s = np.where(low, np.clip(-c / a_safe, 0.0, 1.0), s)
-    s = np.where(high, np.clip((b - c) / a_safe, 0.0, 1.0), s)
-    t = np.clip(t, 0.0, 1.0)
+    s = np.where(low, unit(-c / a_safe), s)
+    s = np.where(high, unit((b - c) / a_safe), s)
+    t = unit(t)
     gap = p1 + d1 * s[..., None] - p2 - d2 * t[..., None]
-    return np.asarray(np.sqrt(np.sum(gap * gap, axis=-1)), dtype=np.float64)
+    return np.asarray(np.sqrt((gap * gap).sum(axis=-1)), dtype=np.float64)
 
 
 @dataclass(frozen=True, slots=True, eq=False)

@@ -200,7 +200,7 @@ class _Targets:
     def com(self, t: float) -> FloatArray:
         """(3,) m, the COM curve at ``t`` (clamped to its span)."""
         curve = self.spec.com
-        return np.asarray(curve(np.array([min(max(t, curve.t0), curve.t1)]))[0], dtype=np.float64)
+        return np.asarray(curve(min(max(t, curve.t0), curve.t1)), dtype=np.float64)
 
     def carried(self, phase: MotionPhase, t: float, k: int) -> tuple[tuple[str, FloatArray], ...]:
         """(limb, pose (4, 4)) of the limbs a flight ``phase`` (index ``k``) carries at
@@ -427,7 +427,7 @@ def build_motion(
     ones it was built with) and tracking goes on from the last of them, the rest of the
     keyframes spaced evenly from there; its QP fallbacks are counted in (at most)."""
     tracker = WholeBodyTracker(character, scene_bvh, obstacles)
-    checker = KeyframeChecker(character, scene_bvh, obstacles)
+    checker = KeyframeChecker(character, scene_bvh, obstacles, tracker)
     targets = _Targets(character, spec)
     kept = _Segment([], [], [], np.array(spec.q_start, dtype=np.float64), 0.0)
     if resume is not None:

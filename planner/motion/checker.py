@@ -18,8 +18,8 @@ from numpy.typing import NDArray
 
 from planner.character import Character
 from planner.motion import tuning
-from planner.motion.clearance import PairBroadPhase, SceneDistances
-from planner.motion.tracker import effector_geometries
+from planner.motion.clearance import PairBroadPhase, SceneDistances, shape_poses
+from planner.motion.tracker import WholeBodyTracker, effector_geometries
 
 if TYPE_CHECKING:
     from planner.contact.state import LimbContact
@@ -54,28 +54,47 @@ class KeyframeCheck:
 
 class KeyframeChecker:
     """Checks keyframes of one character in one scene (``obstacles``: (coal geometry,
-    coal.Transform3s) pairs). Not thread-safe: one per thread."""
+    coal.Transform3s) pairs). Not thread-safe: one per thread. Given the ``tracker`` of the
+    same character, scene and obstacles, it shares its distance bounds (a keyframe is where
+    the tracker's next control step starts: most of its queries are answered then)."""
 
     def __init__(
-        self, character: Character, scene_bvh: Any, obstacles: Sequence[tuple[Any, Any]] = ()
+        self,
+        character: Character,
+        scene_bvh: Any,
+        obstacles: Sequence[tuple[Any, Any]] = (),
+        tracker: WholeBodyTracker | None = None,
     ) -> None:
         self.character = character
         self.model = character.model
-        self.data = self.model.createData()
         self.geometry = character.motion_geometry
+        # with a ``tracker`` of the same character, scene and obstacles, its kinematics
+        # buffers (each step recomputes them) and its distance bounds (exact lower bounds,
+        # whoever measured them) are shared; not its pair distance buffers (coal starts
+        # from their last results: sharing them changes the tracker's witnesses slightly)
         self.geometry_data = pin.GeometryData(self.geometry)
         for request in self.geometry_data.distanceRequests:
             request.enable_signed_distance = True
-        self.distances = SceneDistances(scene_bvh, obstacles, self.geometry)
-        self.broad = PairBroadPhase(self.geometry)
-        self.effectors = effector_geometries(character)
+        if tracker is None:
+            self.data = self.model.createData()
+            self.distances = SceneDistances(scene_bvh, obstacles, self.geometry)
+            self.broad = PairBroadPhase(self.geometry)
+            self.effectors = effector_geometries(character)
+        else:
+            self.data = tracker.data
+            self.distances = tracker.scene.distances
+            self.broad = tracker.self_clearance.broad
+            self.effectors = tracker.effectors
+        self.shapes = [
+            (i, o.geometry, str(o.name)) for i, o in enumerate(self.geometry.geometryObjects)
+        ]
 
     def check(self, q: FloatArray, stance: Sequence[LimbContact]) -> KeyframeCheck:
         """The check of configuration ``q`` (nq,) holding ``stance``."""
         model, data = self.model, self.data
-        pin.forwardKinematics(model, data, q)
-        pin.updateFramePlacements(model, data)
+        pin.framesForwardKinematics(model, data, q)
         pin.updateGeometryPlacements(model, data, self.geometry, self.geometry_data)
+        poses = shape_poses(self.geometry_data)
         skipped: set[int] = set()
         hold = 0.0
         for contact in stance:
@@ -84,16 +103,17 @@ class KeyframeChecker:
             gap = frame.translation - contact.placement[:3, 3]
             hold = max(hold, float(np.sqrt(gap @ gap)))
         deepest, shape = 0.0, None
-        settled = self.distances.settled(self.geometry_data, 0.0)
-        for i, obj in enumerate(self.geometry.geometryObjects):
+        settled = self.distances.settled_at(poses, 0.0)
+        placements = self.geometry_data.oMg
+        for i, geometry, name in self.shapes:
             if i in skipped or settled[i]:
                 continue
-            d = self.distances.nearest(obj.geometry, self.geometry_data.oMg[i])
+            d = self.distances.nearest(geometry, placements[i])
             self.distances.remember(i, d)
             if -d > deepest:
-                deepest, shape = -d, str(obj.name)
+                deepest, shape = -d, name
         self_depth = 0.0
-        for k in self.broad.near(self.geometry_data, 0.0):
+        for k in self.broad.near_at(poses, 0.0):
             pin.computeDistance(self.geometry, self.geometry_data, k)
             d = float(self.geometry_data.distanceResults[k].min_distance)
             self.broad.remember(k, d)

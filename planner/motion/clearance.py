@@ -36,42 +36,86 @@ from planner.motion import tuning
 FloatArray = NDArray[np.float64]
 
 
+Poses = tuple[FloatArray, FloatArray]
+
+
+def shape_poses(geometry_data: Any) -> Poses:
+    """The placements of ``geometry_data`` (updated by the caller) as arrays: rotations
+    (G, 3, 3) and translations (G, 3), world frame."""
+    homogeneous = np.array([m.homogeneous for m in geometry_data.oMg]).reshape(-1, 4, 4)
+    return (
+        np.ascontiguousarray(homogeneous[:, :3, :3]),
+        np.ascontiguousarray(homogeneous[:, :3, 3]),
+    )
+
+
+_MASKS: dict[int, tuple[Any, NDArray[np.bool_]]] = {}
+
+# e_ijk: (a x b)_i = e_ijk a_j b_k
+_LEVI_CIVITA = np.zeros((3, 3, 3))
+for _i, _j, _k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+    _LEVI_CIVITA[_i, _j, _k], _LEVI_CIVITA[_i, _k, _j] = 1.0, -1.0
+
+
+def support_masks(model: Any) -> NDArray[np.bool_]:
+    """(njoints, nv) per joint, the velocity coordinates that move it (those of the joints
+    from the root to it, itself included); computed once per model (read-only)."""
+    cached = _MASKS.get(id(model))
+    if cached is not None and cached[0] is model:
+        return cached[1]
+    masks = np.zeros((model.njoints, model.nv), dtype=bool)
+    parents = list(model.parents)
+    joints = list(model.joints)
+    for joint in range(1, model.njoints):  # a parent's index is below its children's
+        masks[joint] = masks[parents[joint]]
+        start = int(joints[joint].idx_v)
+        masks[joint, start : start + int(joints[joint].nv)] = True
+    masks.flags.writeable = False
+    if len(_MASKS) > 64:
+        _MASKS.clear()
+    _MASKS[id(model)] = (model, masks)
+    return masks
+
+
 class PointJacobians:
-    """Jacobians (3, nv) of the world velocity of body points at one configuration (world
-    axes), each joint's Jacobian read once (a step's rows often share joints); needs
-    ``computeJointJacobians`` there."""
+    """Speeds of body points along directions per unit of dq, at one configuration (rows
+    of the points' Jacobians, world axes); reads the world-frame joint Jacobians ``data.J``
+    of ``computeJointJacobians`` (or ``jacobianCenterOfMass``) there, once. ``masks`` :
+    :func:`support_masks` of the model (computed if not given)."""
 
-    def __init__(self, model: Any, data: Any) -> None:
+    def __init__(self, model: Any, data: Any, masks: NDArray[np.bool_] | None = None) -> None:
         self.model, self.data = model, data
-        self.joints: dict[int, tuple[FloatArray, FloatArray, FloatArray]] = {}
+        self.masks = support_masks(model) if masks is None else masks
+        self._world: FloatArray | None = None
 
-    def __call__(self, joint: int, point: FloatArray) -> FloatArray:
-        """(3, nv) Jacobian of the world ``point`` (3,) fixed to ``joint``."""
-        cached = self.joints.get(joint)
-        if cached is None:
-            j = pin.getJointJacobian(self.model, self.data, joint, pin.LOCAL_WORLD_ALIGNED)
-            cached = (j[:3], j[3:], np.array(self.data.oMi[joint].translation))
-            self.joints[joint] = cached
-        linear, angular, origin = cached
-        lever = point - origin
-        skew = np.array(
-            [[0.0, -lever[2], lever[1]], [lever[2], 0.0, -lever[0]], [-lever[1], lever[0], 0.0]]
-        )
-        return np.asarray(linear - skew @ angular, dtype=np.float64)
+    def along(
+        self, joints: Sequence[int], points: FloatArray, directions: FloatArray
+    ) -> FloatArray:
+        """(r, nv) ``n . J(p)`` for each world point p (r, 3) fixed to its joint (r,) and
+        direction n (r, 3): the column of a joint moving p adds n.v + (p x n).w, with (v, w)
+        that joint's world twist (the velocity of the point at the world origin, and the
+        rotation)."""
+        if self._world is None:
+            self._world = np.array(self.data.J)
+        world = self._world
+        moment = np.einsum("ijk,rj,rk->ri", _LEVI_CIVITA, points, directions)  # p x n
+        speeds = directions @ world[:3] + moment @ world[3:]
+        return np.asarray(speeds * self.masks[np.asarray(joints)], dtype=np.float64)
 
 
-def _damper_row(
-    normal: FloatArray, jacobian: FloatArray, distance: float, security: float
-) -> tuple[FloatArray, float]:
-    """One row of ``G dq <= h`` for ``n . J dq >= -rate (d - d_s)`` while the shape is
-    farther than the security distance ``d_s``; closer, it may not approach (a forearm next
-    to the hand on the floor is not pushed up, dragging the held hand off its contact), and
-    a shape inside the scene is pushed out at ``rate * |d|``, capped at ``MAX_PUSH``."""
-    if distance >= security:
-        bound = tuning.DAMPER_RATE * (distance - security)
-    else:
-        bound = min(0.0, tuning.DAMPER_RATE * distance)
-    return -normal @ jacobian, max(bound, -tuning.MAX_PUSH)
+def _damper_rows(
+    speeds: FloatArray, distances: FloatArray, securities: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Rows of ``G dq <= h`` for ``n . J dq >= -rate (d - d_s)`` (``speeds`` (r, nv) are the
+    ``n . J``, approach speeds per unit of dq, negated; ``distances`` d and security
+    distances d_s (r,)) while a shape is farther than d_s; closer, it may not approach (a
+    forearm next to the hand on the floor is not pushed up, dragging the held hand off its
+    contact), and a shape inside the scene is pushed out at ``rate * |d|``, capped at
+    ``MAX_PUSH``."""
+    far = tuning.DAMPER_RATE * (distances - securities)
+    near = np.minimum(0.0, tuning.DAMPER_RATE * distances)
+    bounds = np.where(distances >= securities, far, near)
+    return -speeds, np.maximum(bounds, -tuning.MAX_PUSH)
 
 
 class SceneDistances:
@@ -125,12 +169,16 @@ class SceneDistances:
         since (centre displacement plus the rotation change's Frobenius norm, which bounds
         its spectral norm, times the bounding radius). Keeps the placements for
         :meth:`remember`."""
-        placements = geometry_data.oMg
-        self.rotations = np.array([m.rotation for m in placements]).reshape(-1, 3, 3)
-        translations = np.array([m.translation for m in placements]).reshape(-1, 3)
+        return self.settled_at(shape_poses(geometry_data), threshold)
+
+    def settled_at(self, poses: Poses, threshold: float) -> NDArray[np.bool_]:
+        """:meth:`settled` with the placements given as :func:`shape_poses` arrays."""
+        self.rotations, translations = poses
         self.centres = np.einsum("gab,gb->ga", self.rotations, self.local_centres) + translations
-        shift = np.linalg.norm(self.centres - self.measured_centres, axis=1)
-        turn = np.sqrt(np.sum((self.rotations - self.measured_rotations) ** 2, axis=(1, 2)))
+        moved = self.centres - self.measured_centres
+        shift = np.sqrt((moved * moved).sum(axis=1))
+        turned = self.rotations - self.measured_rotations
+        turn = np.sqrt((turned * turned).sum(axis=(1, 2)))
         return np.asarray(self.measured - shift - turn * self.radii > threshold)
 
     def remember(self, i: int, distance: float) -> None:
@@ -164,6 +212,10 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
         self.skipped: frozenset[int] = frozenset()
         self.light: dict[int, float] = {}
         self.rows = 0
+        self.masks = support_masks(model)
+        self.shapes = [
+            (i, o.geometry, int(o.parentJoint)) for i, o in enumerate(geometry.geometryObjects)
+        ]
         # per shape: recent (step, scene point (3,), normal (3,), body point in joint frame)
         self.memory: dict[int, list[tuple[int, FloatArray, FloatArray, FloatArray]]] = {}
         self.steps = 0
@@ -189,26 +241,41 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
     def compute_qp_inequalities(
         self, configuration: Any, dt: float
     ) -> tuple[FloatArray, FloatArray] | None:
-        """``G dq <= h`` rows of the shapes within the influence distance (None if none)."""
-        model, data = self.model, configuration.data
-        pin.updateGeometryPlacements(model, data, self.geometry, self.geometry_data)
-        rows: list[FloatArray] = []
-        bounds: list[float] = []
+        """``G dq <= h`` rows of the shapes within the influence distance (None if none)
+        (pink's ``Limit`` interface; the tracker calls :meth:`rows_at`)."""
+        data = configuration.data
+        pin.updateGeometryPlacements(self.model, data, self.geometry, self.geometry_data)
+        poses = shape_poses(self.geometry_data)
+        return self.rows_at(
+            data, self.geometry_data, poses, PointJacobians(self.model, data, self.masks)
+        )
+
+    def rows_at(
+        self, data: Any, geometry_data: Any, poses: Poses, jacobians: PointJacobians
+    ) -> tuple[FloatArray, FloatArray] | None:
+        """The rows of :meth:`compute_qp_inequalities` at the kinematics of ``data`` (joint
+        placements and Jacobians), the shape placements ``geometry_data`` and ``poses``
+        (:func:`shape_poses`) already computed there."""
         self.steps += 1
         oldest = self.steps - tuning.WITNESS_MEMORY
-        settled = self.distances.settled(self.geometry_data, tuning.INFLUENCE_DISTANCE)
-        jacobians = PointJacobians(model, data)
-        for i, obj in enumerate(self.geometry.geometryObjects):
-            if i in self.skipped:
-                continue
-            security = self.light.get(i, tuning.SECURITY_DISTANCE)
-            joint = int(obj.parentJoint)
-            frame = data.oMi[joint]
-            memory = [m for m in self.memory.get(i, []) if m[0] > oldest]
+        settled = self.distances.settled_at(poses, tuning.INFLUENCE_DISTANCE)
+        placements = geometry_data.oMg
+        # the remembered witnesses of every shape, in order: (joint, scene point, normal,
+        # body point in the joint frame, security distance)
+        witnesses: list[tuple[int, FloatArray, FloatArray, FloatArray, float]] = []
+        # only shapes near the scene or with witnesses to remember need a look
+        active = set(np.flatnonzero(~settled).tolist())
+        active.update(i for i, m in self.memory.items() if m)
+        for i in sorted(active - self.skipped):
+            _, shape, joint = self.shapes[i]
+            memory = [m for m in self.memory.get(i, ()) if m[0] > oldest]
             self.memory[i] = memory
+            if not memory and settled[i]:
+                continue
             if not settled[i]:
+                frame = data.oMi[joint]
                 nearest = np.inf
-                for d, result in self.distances.each(obj.geometry, self.geometry_data.oMg[i]):
+                for d, result in self.distances.each(shape, placements[i]):
                     nearest = min(nearest, d)
                     if d > tuning.INFLUENCE_DISTANCE:
                         continue
@@ -216,19 +283,28 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
                     scene_point = np.array(result.getNearestPoint1())
                     memory.append((self.steps, scene_point, np.array(result.normal), local))
                 self.distances.remember(i, nearest)
-            for _, scene_point, normal, local in memory:
-                point = frame.act(local)
-                d = float(normal @ (point - scene_point))
-                if d > tuning.INFLUENCE_DISTANCE:
-                    continue
-                jac = jacobians(joint, point)
-                row, bound = _damper_row(normal, jac, d, security)
-                rows.append(row)
-                bounds.append(bound)
-        self.rows = len(rows)
-        if not rows:
+            security = self.light.get(i, tuning.SECURITY_DISTANCE)
+            witnesses.extend((joint, m[1], m[2], m[3], security) for m in memory)
+        self.rows = 0
+        if not witnesses:
             return None
-        return np.vstack(rows), np.asarray(bounds, dtype=np.float64)
+        joints = np.array([w[0] for w in witnesses])
+        scene_points = np.array([w[1] for w in witnesses])
+        normals = np.array([w[2] for w in witnesses])
+        locals_ = np.array([w[3] for w in witnesses])
+        securities = np.array([w[4] for w in witnesses])
+        frames = {j: data.oMi[j] for j in set(joints.tolist())}
+        rotations = np.array([frames[j].rotation for j in joints.tolist()])
+        origins = np.array([frames[j].translation for j in joints.tolist()])
+        points = np.einsum("rab,rb->ra", rotations, locals_) + origins
+        distances = np.einsum("ra,ra->r", normals, points - scene_points)
+        keep = distances <= tuning.INFLUENCE_DISTANCE
+        if not keep.any():
+            return None
+        speeds = jacobians.along(joints[keep], points[keep], normals[keep])
+        rows, bounds = _damper_rows(speeds, distances[keep], securities[keep])
+        self.rows = len(rows)
+        return rows, bounds
 
 
 class PairBroadPhase:
@@ -258,6 +334,9 @@ class PairBroadPhase:
         # per shape: bounding sphere (its capsule's middle in its frame, radius), odometer (m)
         # and the placement of the last query
         self.middles = (self.ends_a + self.ends_b) / 2.0
+        # per shape, its middle and its capsule's ends, (G, 3, 3) in its frame: one product
+        # places them all
+        self.local_points = np.stack([self.middles, self.ends_a, self.ends_b], axis=1)
         self.spheres = r + np.linalg.norm(self.ends_b - self.ends_a, axis=1) / 2.0
         self.odometer = np.zeros(len(r))
         self.last: tuple[FloatArray, FloatArray] | None = None
@@ -272,22 +351,30 @@ class PairBroadPhase:
         distances it then computes."""
         if len(self.pair_array) == 0:
             return []
-        rot = np.array([m.rotation for m in geometry_data.oMg]).reshape(-1, 3, 3)
-        trans = np.array([m.translation for m in geometry_data.oMg]).reshape(-1, 3)
-        centres = np.einsum("gab,gb->ga", rot, self.middles) + trans
+        return self.near_at(shape_poses(geometry_data), margin)
+
+    def near_at(self, poses: Poses, margin: float) -> list[int]:
+        """:meth:`near` with the placements given as :func:`shape_poses` arrays."""
+        if len(self.pair_array) == 0:
+            return []
+        rot, trans = poses
+        world = np.einsum("gab,gkb->gka", rot, self.local_points)
+        world += trans[:, None, :]
+        centres = world[:, 0]
         if self.last is not None:
             last_rot, last_centres = self.last
-            turn = np.sqrt(np.sum((rot - last_rot) ** 2, axis=(1, 2)))
-            self.odometer += np.linalg.norm(centres - last_centres, axis=1) + turn * self.spheres
+            turned = rot - last_rot
+            moved = centres - last_centres
+            self.odometer += np.sqrt(np.einsum("ga,ga->g", moved, moved))
+            self.odometer += np.sqrt(np.einsum("gab,gab->g", turned, turned)) * self.spheres
         self.last = (rot, centres)
         run = self.odometer[self.pair_array] - self.known_odometers
-        open_ = np.flatnonzero(self.known - run[:, 0] - run[:, 1] <= margin)
+        open_ = np.flatnonzero(self.known - run.sum(axis=1) <= margin)
         if len(open_) == 0:
             return []
-        a, b = self.pair_array[open_, 0], self.pair_array[open_, 1]
-        world_a = np.einsum("gab,gb->ga", rot, self.ends_a) + trans
-        world_b = np.einsum("gab,gb->ga", rot, self.ends_b) + trans
-        gaps = segment_distances(world_a[a], world_b[a], world_a[b], world_b[b])
+        pairs = self.pair_array[open_]
+        first, second = world[pairs[:, 0]], world[pairs[:, 1]]
+        gaps = segment_distances(first[:, 1], first[:, 2], second[:, 1], second[:, 2])
         gaps -= self.radii_sum[open_]
         far = gaps > margin
         done = open_[far]
@@ -316,32 +403,49 @@ class SelfClearance(Limit):  # type: ignore[misc]
         self.joints = [int(o.parentJoint) for o in geometry.geometryObjects]
         self.broad = PairBroadPhase(geometry)
         self.rows = 0
+        self.masks = support_masks(model)
 
     def compute_qp_inequalities(
         self, configuration: Any, dt: float
     ) -> tuple[FloatArray, FloatArray] | None:
-        """``G dq <= h`` rows of the pairs within the influence distance (None if none)."""
-        model, data = self.model, configuration.data
-        pin.updateGeometryPlacements(model, data, self.geometry, self.geometry_data)
-        near = self.broad.near(self.geometry_data, tuning.INFLUENCE_DISTANCE)
-        jacobians = PointJacobians(model, data)
-        rows: list[FloatArray] = []
-        bounds: list[float] = []
+        """``G dq <= h`` rows of the pairs within the influence distance (None if none)
+        (pink's ``Limit`` interface; the tracker calls :meth:`rows_at`)."""
+        data = configuration.data
+        pin.updateGeometryPlacements(self.model, data, self.geometry, self.geometry_data)
+        poses = shape_poses(self.geometry_data)
+        return self.rows_at(self.geometry_data, poses, PointJacobians(self.model, data, self.masks))
+
+    def rows_at(
+        self, geometry_data: Any, poses: Poses, jacobians: PointJacobians
+    ) -> tuple[FloatArray, FloatArray] | None:
+        """The rows of :meth:`compute_qp_inequalities` at the shape placements of
+        ``geometry_data`` (its distance requests signed) and ``poses`` (:func:`shape_poses`),
+        with ``jacobians`` read at the same kinematics."""
+        near = self.broad.near_at(poses, tuning.INFLUENCE_DISTANCE)
+        # per pair within the influence distance: its joints, witness points, normal (from
+        # a to b) and distance
+        joints: list[int] = []
+        points: list[FloatArray] = []
+        normals: list[FloatArray] = []
+        distances: list[float] = []
         for k in near:
             a, b = self.pairs[k]
-            pin.computeDistance(self.geometry, self.geometry_data, k)
-            result = self.geometry_data.distanceResults[k]
+            pin.computeDistance(self.geometry, geometry_data, k)
+            result = geometry_data.distanceResults[k]
             d = float(result.min_distance)
             self.broad.remember(k, d)
             if d > tuning.INFLUENCE_DISTANCE:
                 continue
+            joints += [self.joints[a], self.joints[b]]
+            points += [np.array(result.getNearestPoint1()), np.array(result.getNearestPoint2())]
             normal = np.array(result.normal)
-            jac_a = jacobians(self.joints[a], np.array(result.getNearestPoint1()))
-            jac_b = jacobians(self.joints[b], np.array(result.getNearestPoint2()))
-            row, bound = _damper_row(normal, jac_b - jac_a, d, tuning.SECURITY_DISTANCE)
-            rows.append(row)
-            bounds.append(bound)
-        self.rows = len(rows)
-        if not rows:
+            normals += [normal, normal]
+            distances.append(d)
+        self.rows = len(distances)
+        if not distances:
             return None
-        return np.vstack(rows), np.asarray(bounds, dtype=np.float64)
+        speeds = jacobians.along(joints, np.array(points), np.array(normals))
+        gap = np.array(distances)
+        return _damper_rows(
+            speeds[1::2] - speeds[0::2], gap, np.full(len(gap), tuning.SECURITY_DISTANCE)
+        )

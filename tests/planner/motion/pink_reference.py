@@ -1,0 +1,122 @@
+"""The tracker's QP rebuilt with pink's task objects and ``build_ik``: the reference the
+tracker's own assembly (``WholeBodyTracker.objective`` / ``problem``) is compared to, in
+``test_tracker_qp.py`` and ``bench/tracker.py``."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+import qpsolvers
+from pink import Configuration, build_ik
+from pink.limits import ConfigurationLimit, VelocityLimit
+from pink.tasks import ComTask, FrameTask, PostureTask
+
+from planner.motion import tuning
+from planner.motion.tracker import StepTargets, WholeBodyTracker, _saturated, speed_limits
+
+
+class PinkReference:
+    """pink tasks and limits mirroring a :class:`WholeBodyTracker`'s; ``dampers`` is the
+    (scene, self) limit pair pink reads (give a second tracker's, so that their memory
+    evolves as the first one's)."""
+
+    def __init__(self, tracker: WholeBodyTracker, dampers: tuple[Any, Any]) -> None:
+        self.tracker = tracker
+        model = tracker.model
+        self.data = model.createData()
+        self.configuration = Configuration(model, self.data, pin.neutral(model), copy_data=False)
+        self.com = ComTask(cost=tuning.COM_COST, gain=tuning.TASK_GAIN)
+        self.trunk = FrameTask(
+            str(model.frames[1].name),
+            position_cost=[0.0, 0.0, tuning.TRUNK_HEIGHT_COST],
+            orientation_cost=[tuning.TRUNK_COST, tuning.TRUNK_COST, 0.0],
+            gain=tuning.TRUNK_GAIN,
+        )
+        self.posture = PostureTask(cost=tuning.POSTURE_COST, gain=tuning.POSTURE_GAIN)
+        self.stance: dict[str, FrameTask] = {}
+        self.swing: dict[str, FrameTask] = {}
+        for limb in tracker.character.limbs:
+            patch = limb.contact == "patch"
+            self.stance[limb.name] = FrameTask(
+                limb.effector_frame,
+                position_cost=tuning.STANCE_COST,
+                orientation_cost=tuning.STANCE_COST if patch else 0.0,
+                gain=tuning.TASK_GAIN,
+            )
+            self.swing[limb.name] = FrameTask(
+                limb.effector_frame,
+                position_cost=tuning.SWING_POSITION_COST,
+                orientation_cost=tuning.SWING_ORIENTATION_COST if patch else 0.0,
+                gain=tuning.TASK_GAIN,
+            )
+        self.dampers = dampers
+        self.limits = {
+            bounded: [
+                ConfigurationLimit(model),
+                VelocityLimit(model, speed_limits(model, root_bounded=bounded)),
+            ]
+            for bounded in (False, True)
+        }
+
+    def tasks(self, q: Any, targets: StepTargets, share: float = 1.0) -> list[Any]:
+        """pink's tasks of the step at ``q`` (nq,) toward ``targets`` (the configuration
+        updated to ``q``)."""
+        self.configuration.update(q)
+        out: list[Any] = []
+        for limb, pose in targets.stance:
+            task = self.stance[limb]
+            task.set_target(pin.SE3(pose[:3, :3].copy(), pose[:3, 3].copy()))
+            out.append(task)
+        moving = [] if targets.swing is None else [targets.swing]
+        for limb, pose in [*moving, *targets.carried]:
+            task = self.swing[limb]
+            here = self.data.oMf[self.tracker.character.limb(limb).frame_id].translation
+            goal = _saturated(here, pose[:3, 3], tuning.SWING_MAX_ERROR)
+            task.set_target(pin.SE3(pose[:3, :3].copy(), goal))
+            out.append(task)
+        com = pin.centerOfMass(self.tracker.model, self.data, q, False)
+        self.com.set_target(_saturated(com, np.asarray(targets.com), targets.com_reach))
+        out.append(self.com)
+        posture = np.asarray(targets.posture, dtype=np.float64)
+        trunk = self.tracker.trunk_rotation(posture, targets.level_trunk)
+        self.trunk.set_target(pin.SE3(trunk, posture[:3].copy()))
+        self.trunk.gain = 1.0 - (1.0 - tuning.TRUNK_GAIN) ** share
+        self.posture.gain = 1.0 - (1.0 - tuning.POSTURE_GAIN) ** share
+        out.append(self.trunk)
+        reach = tuning.POSTURE_MAX_ERROR * share
+        joints = slice(7, None)
+        goal = np.array(q, dtype=np.float64)
+        goal[joints] = q[joints] + np.clip(posture[joints] - q[joints], -reach, reach)
+        self.posture.set_target(goal)
+        out.append(self.posture)
+        return out
+
+    def problem(
+        self,
+        q: Any,
+        targets: StepTargets,
+        dt: float,
+        share: float = 1.0,
+        dampers: bool = True,
+        rigid: Sequence[str] = (),
+    ) -> qpsolvers.Problem:
+        """pink's ``build_ik`` problem of the step (rigid limbs' stance as equalities)."""
+        tasks = self.tasks(q, targets, share)
+        limits = list(self.limits[targets.root_bounded])
+        if dampers:
+            limits += list(self.dampers)
+        problem = build_ik(self.configuration, tasks, dt, damping=tuning.DAMPING, limits=limits)
+        if rigid:
+            rows, values = [], []
+            for limb in rigid:
+                task = self.stance[limb]
+                patch = self.tracker.character.limb(limb).contact == "patch"
+                keep = slice(0, 6) if patch else slice(0, 3)
+                rows.append(task.compute_jacobian(self.configuration)[keep])
+                values.append(-task.gain * task.compute_error(self.configuration)[keep])
+            problem.A = np.vstack(rows)
+            problem.b = np.concatenate(values)
+        return problem
