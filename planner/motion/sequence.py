@@ -10,6 +10,7 @@ it with the whole body (2PAC section 7.2).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -501,7 +502,8 @@ def sequence_motion(
             )
             trials.append(dynamic_refused)
     keep: tuple[BuiltMotion, int] | None = None
-    for _ in range(tuning.DYNAMIC_MAX_BUILDS):
+    builds = max(tuning.DYNAMIC_MAX_BUILDS, math.ceil(tuning.DYNAMIC_BUILDS_PER_PHASE * n))
+    for _ in range(builds):
         if dynamic is None:
             break
         times_d = np.asarray(dynamic.phase_times, dtype=np.float64)

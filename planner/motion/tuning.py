@@ -228,9 +228,14 @@ rest, which is kept (later phases shifted in time). When no such window curve pa
 the window reaches to the plan's end."""
 
 DYNAMIC_MAX_BUILDS = 6
-"""Trial builds of dynamic curves before a plan keeps 2PAC's curve. Each is abandoned at
-its first unclean phase and the next resumes from its window, so together they cost about
-one build of the plan's keyframes plus the failing windows."""
+"""Trial builds of dynamic curves before a plan keeps 2PAC's curve, at least (a longer plan
+gets ``DYNAMIC_BUILDS_PER_PHASE`` per phase). Each is abandoned at its first unclean phase
+and the next resumes from its window, so together they cost about one build of the plan's
+keyframes plus the failing windows."""
+
+DYNAMIC_BUILDS_PER_PHASE = 0.15
+"""Trial builds per phase of a long plan: the humanoid's climbing wall (127 phases) met an
+unclean phase every 2 to 11 phases at brisk durations."""
 
 MAX_ROOT_SPEED = 1.4
 """m/s, the fastest the root may move between two keyframes of a plan's dynamic motion (the
