@@ -294,11 +294,17 @@ def _swing_at_fault(segment: _Segment, shapes: frozenset[str]) -> bool:
 def _unclean(segment: _Segment, before: Keyframe | None) -> bool:
     """Whether ``segment`` cannot be played as is: a keyframe collides, a stance contact
     slips beyond ``HOLD_TOLERANCE``, the COM lags its curve by more than
-    ``TRIAL_COM_TOLERANCE``, or the root moves faster than ``MAX_ROOT_SPEED`` between two
-    keyframes (from ``before``, the keyframe preceding the segment, if any)."""
+    ``TRIAL_COM_TOLERANCE`` in more than ``TRIAL_COM_LAG_SHARE`` of the keyframes or by
+    more than ``TRIAL_COM_MAX_LAG`` in one, or the root moves faster than
+    ``MAX_ROOT_SPEED`` between two keyframes (from ``before``, the keyframe preceding the
+    segment, if any)."""
     if not all(c.valid for c in segment.checks):
         return True
-    if max(segment.com_errors, default=0.0) > tuning.TRIAL_COM_TOLERANCE:
+    lags = np.asarray(segment.com_errors, dtype=np.float64)
+    if lags.size and (
+        float(lags.max()) > tuning.TRIAL_COM_MAX_LAG
+        or float(np.mean(lags > tuning.TRIAL_COM_TOLERANCE)) > tuning.TRIAL_COM_LAG_SHARE
+    ):
         return True
     keys = ([before] if before is not None else []) + segment.keyframes
     for a, b in itertools.pairwise(keys):
@@ -419,13 +425,13 @@ def build_motion(
     ``spec.q_end``, a motion not cut short ends exactly there (its last ``END_BLEND_S``
     seconds blended into it, and checked again). With ``abandon_unclean`` (a trial build
     that a caller would refuse), the build stops after the first phase whose best attempt
-    collides, lets a stance contact slip, lags the COM curve by more than
-    ``TRIAL_COM_TOLERANCE`` or moves the root faster than ``MAX_ROOT_SPEED`` between two
-    keyframes; the report says ``abandoned``. With
-    ``resume`` (an earlier build, a phase index p), the earlier build's keyframes of the
-    phases before p are kept as they are (``spec``'s phases and COM before p must be the
-    ones it was built with) and tracking goes on from the last of them, the rest of the
-    keyframes spaced evenly from there; its QP fallbacks are counted in (at most)."""
+    collides, lets a stance contact slip, lags the COM curve (``_unclean``) or moves the
+    root faster than ``MAX_ROOT_SPEED`` between two keyframes; the report says
+    ``abandoned``. With ``resume`` (an earlier build, a phase index p), the earlier build's
+    keyframes of the phases before p are kept as they are (``spec``'s phases and COM before
+    p must be the ones it was built with) and tracking goes on from the last of them, the
+    rest of the keyframes spaced evenly from there; its QP fallbacks are counted in (at
+    most)."""
     tracker = WholeBodyTracker(character, scene_bvh, obstacles)
     checker = KeyframeChecker(character, scene_bvh, obstacles, tracker)
     targets = _Targets(character, spec)

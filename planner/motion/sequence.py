@@ -378,13 +378,13 @@ def timed_com(
 
 
 def _unplayable(built: BuiltMotion) -> str | None:
-    """Why a motion cannot be played as is (its builder's shortfall, its COM lagging the
-    curve by more than ``tuning.TRIAL_COM_TOLERANCE``, or the root moving faster than
+    """Why a motion cannot be played as is (its builder's shortfall, with how far the COM
+    lagged when the build was abandoned, or the root moving faster than
     ``tuning.MAX_ROOT_SPEED`` between two keyframes), None when it can."""
     why = built.report.shortfall()
     lag = built.report.com_error_max
-    if lag > tuning.TRIAL_COM_TOLERANCE:
-        lags = f"the COM lags its curve by {lag * 1000:.0f} mm"
+    if built.report.abandoned and lag > tuning.TRIAL_COM_TOLERANCE:
+        lags = f"the COM lags its curve by up to {lag * 1000:.0f} mm"
         why = lags if why is None else f"{why}; {lags}"
     if why is not None:
         return why

@@ -117,10 +117,16 @@ SELF_PENETRATION_TOLERANCE = 0.005
 HOLD_TOLERANCE = 0.005
 """m, a stance contact further than this from where it was placed has slipped."""
 
-TRIAL_COM_TOLERANCE = 0.05
-"""m, a dynamic COM curve whose keyframe COM lags it by more than this somewhere is refused
-(the body cannot follow it: the hexapod's wall at brisk durations lagged 45 mm, p99; the
-audit asks 20 mm at the 99th percentile, and a walk's brief lags stay under 50)."""
+TRIAL_COM_TOLERANCE = 0.02
+"""m, the audit's bound on the keyframe COM's distance to its curve (99th percentile)."""
+
+TRIAL_COM_LAG_SHARE = 0.1
+"""A phase of a dynamic trial whose keyframe COM is further than ``TRIAL_COM_TOLERANCE``
+from the curve in more than this share of its keyframes is refused (the hexapod's wall at
+brisk durations lagged 45-51 mm at the 99th percentile)."""
+
+TRIAL_COM_MAX_LAG = 0.08
+"""m, a phase of a dynamic trial whose keyframe COM lags further than this once is refused."""
 
 # --- swing ------------------------------------------------------------------------------------
 SWING_LIFTS = (0.08, 0.16, 0.24)
