@@ -523,6 +523,7 @@ def sequence_motion(
         trials.append(dynamic_refused)
         lo = max(0, bad - tuning.DYNAMIC_WINDOW_BEFORE)
         found: trajectory.DynamicCom | None = None
+        why = f"phases {lo} on: no slower level left"
         for hi in (min(n, bad + 1 + tuning.DYNAMIC_WINDOW_AFTER), n):
             slower = _slower(factors_tried, lo, hi, levels)
             if slower is None:
@@ -533,10 +534,16 @@ def sequence_motion(
             if found is not None:
                 factors_tried = slower
                 break
+            why = f"no curve passes Eq. 1 slower from phase {lo} on"
         if found is None:
-            trials.append(f"no curve passes Eq. 1 slower from phase {lo} on")
+            trials.append(why)
             break
         dynamic, keep = found, (candidate, lo)
+    else:
+        if dynamic is not None and n >= 2:
+            trials.append(f"no clean curve after {builds} trial builds")
+    if built is None and trials:
+        dynamic_refused = trials[-1]
     if built is None:
         curve = com_trajectory.curve
         times = np.asarray(com_trajectory.phase_times, dtype=np.float64)
