@@ -46,7 +46,7 @@ class MotionReport:
     swings_raised : swing phases tracked again with a higher arc (2PAC 7.2), and flights
     with their limbs tucked further. abandoned : the build stopped at the first phase that
     could not be played cleanly (``build_motion(abandon_unclean=True)``), abandoned_phase
-    (its index).
+    (its index) and abandoned_because (why, in words).
     """
 
     phases_animated: int
@@ -64,6 +64,7 @@ class MotionReport:
     colliding_times: tuple[float, ...] = field(default=())
     abandoned: bool = False
     abandoned_phase: int | None = None
+    abandoned_because: str | None = None
 
     @property
     def complete(self) -> bool:
@@ -79,7 +80,8 @@ class MotionReport:
         reasons = []
         if self.phases_animated < self.phases_total:
             why = ": the budget ran out" if self.cut_short else ""
-            why = ": abandoned at the first unclean phase" if self.abandoned else why
+            if self.abandoned:
+                why = f": abandoned at the first unclean phase ({self.abandoned_because})"
             reasons.append(
                 f"keyframes for {self.phases_animated} of {self.phases_total} phases{why}"
             )
@@ -291,27 +293,29 @@ def _swing_at_fault(segment: _Segment, shapes: frozenset[str]) -> bool:
     return missed or any(c.colliding and c.shape in shapes for c in segment.checks)
 
 
-def _unclean(segment: _Segment, before: Keyframe | None) -> bool:
-    """Whether ``segment`` cannot be played as is: a keyframe collides, a stance contact
-    slips beyond ``HOLD_TOLERANCE``, the COM lags its curve by more than
+def _unclean(segment: _Segment, before: Keyframe | None) -> str | None:
+    """Why ``segment`` cannot be played as is, None when it can: a keyframe collides, a
+    stance contact slips beyond ``HOLD_TOLERANCE``, the COM lags its curve by more than
     ``TRIAL_COM_TOLERANCE`` in more than ``TRIAL_COM_LAG_SHARE`` of the keyframes or by
     more than ``TRIAL_COM_MAX_LAG`` in one, or the root moves faster than
     ``MAX_ROOT_SPEED`` between two keyframes (from ``before``, the keyframe preceding the
     segment, if any)."""
     if not all(c.valid for c in segment.checks):
-        return True
+        return "a keyframe collides or a contact slips"
     lags = np.asarray(segment.com_errors, dtype=np.float64)
     if lags.size and (
         float(lags.max()) > tuning.TRIAL_COM_MAX_LAG
         or float(np.mean(lags > tuning.TRIAL_COM_TOLERANCE)) > tuning.TRIAL_COM_LAG_SHARE
     ):
-        return True
+        return f"the COM lags its curve by up to {float(lags.max()) * 1000:.0f} mm"
     keys = ([before] if before is not None else []) + segment.keyframes
     for a, b in itertools.pairwise(keys):
-        gap = float(np.linalg.norm(np.asarray(b.q[:3]) - np.asarray(a.q[:3])))
-        if gap > tuning.MAX_ROOT_SPEED * max(b.t - a.t, 1e-9):
-            return True
-    return False
+        speed = float(np.linalg.norm(np.asarray(b.q[:3]) - np.asarray(a.q[:3]))) / max(
+            b.t - a.t, 1e-9
+        )
+        if speed > tuning.MAX_ROOT_SPEED:
+            return f"the root moves at {speed:.1f} m/s between two keyframes"
+    return None
 
 
 def _track_segment(
@@ -479,6 +483,7 @@ def build_motion(
         if (swing := spec.phases[k].swing) is not None and lift > swing.lift
     )
     abandoned: int | None = None
+    abandoned_because: str | None = None
     for times in groups:
         k = targets.phase_index(times[0])
         swing = spec.phases[k].swing
@@ -527,8 +532,8 @@ def build_motion(
         previous = times[-1]
         if best.cut_short:
             break
-        if abandon_unclean and _unclean(best, last_key):
-            abandoned = k
+        if abandon_unclean and (unclean := _unclean(best, last_key)) is not None:
+            abandoned, abandoned_because = k, unclean
             break
     keyframes = [key for s in segments for key in s.keyframes]
     checks = [c for s in segments for c in s.checks]
@@ -556,6 +561,7 @@ def build_motion(
         colliding_times=colliding,
         abandoned=abandoned is not None,
         abandoned_phase=abandoned,
+        abandoned_because=abandoned_because,
     )
     phases = tuple(Phase(t0=p.t0, t1=p.t1, contacts=p.stance) for p in spec.phases)
     com_segments = tuple(

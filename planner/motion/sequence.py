@@ -377,27 +377,6 @@ def timed_com(
     return com_trajectory, attractor_report
 
 
-def _unplayable(built: BuiltMotion) -> str | None:
-    """Why a motion cannot be played as is (its builder's shortfall, with how far the COM
-    lagged when the build was abandoned, or the root moving faster than
-    ``tuning.MAX_ROOT_SPEED`` between two keyframes), None when it can."""
-    why = built.report.shortfall()
-    lag = built.report.com_error_max
-    if built.report.abandoned and lag > tuning.TRIAL_COM_TOLERANCE:
-        lags = f"the COM lags its curve by up to {lag * 1000:.0f} mm"
-        why = lags if why is None else f"{why}; {lags}"
-    if why is not None:
-        return why
-    roots = np.array([key.q[:3] for key in built.keyframes]).reshape(-1, 3)
-    times = np.array([key.t for key in built.keyframes])
-    if times.size < 2:
-        return None
-    speeds = np.linalg.norm(np.diff(roots, axis=0), axis=1) / np.maximum(np.diff(times), 1e-9)
-    if float(speeds.max()) > tuning.MAX_ROOT_SPEED:
-        return f"the root moves at {float(speeds.max()):.1f} m/s between two keyframes"
-    return None
-
-
 def _com_method(methods: Sequence[str]) -> str:
     """The plan's COM method from its phases': "2pac+dynamic" (2PAC's transition points
     and curve refined under Eq. 1), "2pac", or "2pac+rest_to_rest" when a window fell back."""
@@ -508,7 +487,7 @@ def sequence_motion(
             break
         times_d = np.asarray(dynamic.phase_times, dtype=np.float64)
         candidate = build(dynamic.curve, times_d, trial=True, resume=keep)
-        unplayable = _unplayable(candidate)
+        unplayable = candidate.report.shortfall()  # says why a trial was abandoned
         if unplayable is None or candidate.report.cut_short:
             built, factors = candidate, factors_tried
             curve, times = dynamic.curve, times_d
