@@ -46,6 +46,7 @@ from planner.contact.state import ContactState, LimbContact
 from planner.kinematics import com_position
 from planner.motion import ComSegment, Keyframe, Phase
 from planner.motion.builder import BuiltMotion, MotionReport
+from planner.motion.checker import KeyframeChecker
 from planner.motion.jump import JumpLeg, JumpTiming, build_jumps
 from planner.offline import OfflineData
 from planner.result import PlanResult, PlanStatus
@@ -382,7 +383,14 @@ def plan_jumps(
     stats.update({f"roadmap_{k}": v for k, v in roadmap.stats.items() if k in ("nodes", "edges")})
 
     mark = time.perf_counter()
-    found = roadmap.query(start_node, goal_node, collides_many=model.collider, until=until)
+    stances = _NodeStances(model, data, roadmap)
+    found = roadmap.query(
+        start_node,
+        goal_node,
+        collides_many=model.collider,
+        node_clear=stances.clear,
+        until=until,
+    )
     timings["query"] = time.perf_counter() - mark
     if found.value is None:
         timings["total"] = time.perf_counter() - clock
@@ -393,7 +401,7 @@ def plan_jumps(
     path = found.value
 
     mark = time.perf_counter()
-    jumps, motion = _synthesise(model, data, params, roadmap, path, start_node, goal_node, until)
+    jumps, motion = _synthesise(model, params, path, start_node, goal_node, stances, until)
     timings["keyframes"] = time.perf_counter() - mark
     timings["total"] = time.perf_counter() - clock
     report = motion.report
@@ -418,46 +426,75 @@ def _point(spec: FloatArray) -> FloatArray:
     return np.asarray(spec[:3, 3] if spec.shape == (4, 4) else spec, dtype=np.float64)
 
 
+class _NodeStances:
+    """The whole-body contact stance of each node a query touches (computed once), and
+    whether it is clear of the scene and of itself (the builder's keyframe check): the
+    roadmap checks only the trunk, and a limb placed on its contact may still pass through
+    a wall beside it (jump paper section 5: the contact configurations are collision-free)."""
+
+    def __init__(self, model: ReducedModel, data: OfflineData, roadmap: Roadmap) -> None:
+        self.character = model.character
+        self.stancer = NodeStancer(model.character, data)
+        self.checker = KeyframeChecker(model.character, model.scene.collision.bvh)
+        self.surfaces = {surface.id: surface for surface in model.surfaces}
+        self.roadmap = roadmap
+        self._made: dict[tuple[int, int], tuple[ContactState, bool]] = {}
+
+    def of(self, nodes: RoadmapNodes, i: int, label: int) -> tuple[ContactState, bool]:
+        """The contact state of node ``i`` of ``nodes`` (``label``: its index in the roadmap,
+        or START / GOAL) and whether it is clear."""
+        key = (label, i) if label < 0 else (label, 0)
+        made = self._made.get(key)
+        if made is None:
+            row = _node_row(nodes, i)
+            stance = self.stancer.stance(
+                nodes.positions[i],
+                nodes.orientations[i],
+                row["active"],
+                row["points"],
+                row["normals"],
+                [self.surfaces.get(int(sid)) for sid in row["surfaces"]],
+            )
+            state = _state(self.character, row, stance)
+            check = self.checker.check(np.asarray(state.q), state.contacts)
+            made = (state, not check.colliding)
+            self._made[key] = made
+        return made
+
+    def clear(self, i: int) -> bool:
+        """Whether roadmap node ``i``'s stance is clear (``query_roadmap``'s ``node_clear``)."""
+        return self.of(self.roadmap.nodes, i, i)[1]
+
+
 def _synthesise(
     model: ReducedModel,
-    data: OfflineData,
     params: JumpParams,
-    roadmap: Roadmap,
     path: JumpPath,
     start: RoadmapNodes,
     goal: RoadmapNodes,
+    stances: _NodeStances,
     until: Termination,
 ) -> tuple[tuple[JumpInfo, ...], BuiltMotion]:
     """Jump descriptions (of the COM) and the whole-body motion along a roadmap path."""
     char = model.character
-    stancer = NodeStancer(char, data)
+    states: list[ContactState] = []
     rows: list[dict[str, Any]] = []
     for label in path.nodes:
-        if label == START:
-            rows.append(_node_row(start, 0))
-        elif label == GOAL:
-            rows.append(_node_row(goal, 0))
-        else:
-            rows.append(_node_row(roadmap.nodes, int(label)))
-    by_id = {surface.id: surface for surface in model.surfaces}
-    stances: list[Stance] = [
-        stancer.stance(
-            path.positions[i],
-            path.orientations[i],
-            row["active"],
-            row["points"],
-            row["normals"],
-            [by_id.get(int(sid)) for sid in row["surfaces"]],
+        nodes, i = (
+            (start, 0)
+            if label == START
+            else (goal, 0)
+            if label == GOAL
+            else (stances.roadmap.nodes, int(label))
         )
-        for i, row in enumerate(rows)
-    ]
-    states = [_state(char, row, stance) for row, stance in zip(rows, stances, strict=True)]
+        rows.append(_node_row(nodes, i))
+        states.append(stances.of(nodes, i, int(label))[0])
     ends: list[tuple[JumpEnd, JumpEnd, FloatArray, float]] = []
     legs: list[JumpLeg] = []
     for i in range(len(path)):
         jump = jump_at(path.positions[i], path.positions[i + 1], float(path.t[i]), path.g)
         # the COM's parabola: the root's, translated by the takeoff stance's COM offset
-        offset = com_position(char.model, stances[i].q) - stances[i].q[:3]
+        offset = com_position(char.model, states[i].q) - states[i].q[:3]
         takeoff = _end(model, rows[i], states[i], jump.p0 + offset, jump.v0)
         landing = _end(model, rows[i + 1], states[i + 1], jump.p1 + offset, jump.vimp)
         ends.append((takeoff, landing, jump.apex + offset, jump.duration))

@@ -562,10 +562,13 @@ class Roadmap:
         goal: RoadmapNodes,
         *,
         collides_many: TrunkCollision | None = None,
+        node_clear: Callable[[int], bool] | None = None,
         until: Termination = never,
     ) -> PlanResult[JumpPath]:
         """Shortest jump sequence from ``start`` to ``goal``; see ``query_roadmap``."""
-        return query_roadmap(self, start, goal, collides_many=collides_many, until=until)
+        return query_roadmap(
+            self, start, goal, collides_many=collides_many, node_clear=node_clear, until=until
+        )
 
 
 def build_roadmap(
@@ -686,13 +689,17 @@ def query_roadmap(
     goal: RoadmapNodes,
     *,
     collides_many: TrunkCollision | None = None,
+    node_clear: Callable[[int], bool] | None = None,
     until: Termination = never,
 ) -> PlanResult[JumpPath]:
     """Connect ``start`` (outgoing) and ``goal`` (incoming) like any node, then Dijkstra.
 
     start, goal : one node each. New edges, and stored edges still UNKNOWN (lazy roadmaps),
     are collision-checked only when they lie on the current shortest path; an invalid one is
-    dropped and the search repeats (Lazy PRM). The roadmap itself is not modified.
+    dropped and the search repeats (Lazy PRM). Likewise each roadmap node on the path is
+    asked once of ``node_clear`` (its index in ``roadmap.nodes``; None: every node is
+    clear), and a refused node's edges are dropped: a whole-body stance that collides where
+    only the trunk was checked. The roadmap itself is not modified.
     Statuses: SOLVED (a start equal to the goal gives zero jumps); INVALID_START / INVALID_GOAL
     when no feasible jump leaves the start / reaches the goal; INFEASIBLE when the graph does
     not connect them; TIMEOUT when ``until`` fires.
@@ -753,6 +760,7 @@ def query_roadmap(
     t = edges.t.copy()
     status = edges.status.copy()
     active = np.ones(len(edges), dtype=bool)
+    cleared: dict[int, bool] = {}
     iterations = 0
     while True:
         if until():
@@ -790,6 +798,16 @@ def query_roadmap(
             active[unknown[~valid]] = False
             if not valid.all():
                 continue
+        if node_clear is not None:
+            for node in chain[1:-1]:
+                if node not in cleared:
+                    cleared[node] = node_clear(node)
+        refused = [node for node in chain[1:-1] if not cleared.get(node, True)]
+        if refused:
+            stats["nodes_refused"] = stats.get("nodes_refused", 0) + len(refused)
+            gone = np.isin(edges.src, refused) | np.isin(edges.dst, refused)
+            active &= ~gone
+            continue
         stats["lazy_iterations"] = iterations
         break
     nodes_path = np.array(chain, dtype=np.int64)

@@ -14,7 +14,7 @@ import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
@@ -28,6 +28,9 @@ from planner.motion.spec import MotionPhase, MotionSpec
 from planner.motion.tracker import StepTargets, WholeBodyTracker
 from planner.motion.types import ComSegment, Keyframe, Phase
 from planner.termination import Termination, never
+
+if TYPE_CHECKING:  # annotations only: planner.contact imports planner.motion
+    from planner.contact.state import LimbContact
 
 FloatArray = NDArray[np.float64]
 
@@ -199,33 +202,61 @@ class _Targets:
             )
         return self._arcs[key]
 
+    def released(self, k: int, t: float) -> tuple[LimbContact, ...]:
+        """The contacts of phase ``k - 1``'s stance that phase ``k`` no longer holds, while
+        ``t`` is less than a keyframe interval into phase ``k`` (the effectors are leaving
+        their surfaces); none later."""
+        if k == 0 or t - self.spec.phases[k].t0 >= 1.0 / self.spec.rate:
+            return ()
+        held = {c.limb for c in self.spec.phases[k].stance}
+        return tuple(c for c in self.spec.phases[k - 1].stance if c.limb not in held)
+
     def com(self, t: float) -> FloatArray:
         """(3,) m, the COM curve at ``t`` (clamped to its span)."""
         curve = self.spec.com
         return np.asarray(curve(min(max(t, curve.t0), curve.t1)), dtype=np.float64)
 
+    @staticmethod
+    def flight_blend(phase: MotionPhase, t: float) -> tuple[float, float]:
+        """(s, smoothstep(s)) at ``t`` of a flight ``phase``: s the fraction of the flight
+        but its last ``FLIGHT_SETTLE_SHARE``, in which the limbs hold their landing offsets."""
+        span = (phase.t1 - phase.t0) * (1.0 - tuning.FLIGHT_SETTLE_SHARE)
+        s = 1.0 if span <= 0.0 else min(1.0, max(0.0, (t - phase.t0) / span))
+        return s, s * s * (3.0 - 2.0 * s)
+
+    @staticmethod
+    def turn(phase: MotionPhase, blend: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """(3, 3) rotations of a flight ``phase``'s root at takeoff, at landing and a
+        fraction ``blend`` of the way between (slerp); the identity three times when the
+        phase does not turn (``turn_from`` None)."""
+        if phase.turn_from is None:
+            return np.eye(3), np.eye(3), np.eye(3)
+        start = pin.Quaternion(np.asarray(phase.turn_from, dtype=np.float64)).matrix()
+        end = pin.Quaternion(np.asarray(phase.posture[3:7], dtype=np.float64)).matrix()
+        return start, end, _slerp(start, end, blend)
+
     def carried(self, phase: MotionPhase, t: float, k: int) -> tuple[tuple[str, FloatArray], ...]:
         """(limb, pose (4, 4)) of the limbs a flight ``phase`` (index ``k``) carries at
         ``t``: the COM plus an offset blended from the start offset to the end offset
-        (smoothstep), pulled toward the limb's tuck offset (raised by the phase's extra lift)
-        by share sin^2(pi s) (s the fraction of the flight but its last
-        ``FLIGHT_SETTLE_SHARE``, in which the limbs hold their landing offsets; share
-        ``FLIGHT_TUCK`` unless the phase was retried with a stronger tuck, ``tucks``); the
-        orientation slerped from start to end."""
+        (smoothstep of :meth:`flight_blend`), pulled toward the limb's tuck offset (raised by
+        the phase's extra lift) by share sin^2(pi s) (share ``FLIGHT_TUCK`` unless the phase
+        was retried with a stronger tuck, ``tucks``); offsets blended in the frame of the
+        turning root (:meth:`turn`); the orientation slerped from start to end."""
         if not phase.flight:
             return ()
-        span = (phase.t1 - phase.t0) * (1.0 - tuning.FLIGHT_SETTLE_SHARE)
-        s = 1.0 if span <= 0.0 else min(1.0, max(0.0, (t - phase.t0) / span))
-        blend = s * s * (3.0 - 2.0 * s)
+        s, blend = self.flight_blend(phase, t)
         share, lift = self.tucks.get(k, (tuning.FLIGHT_TUCK, 0.0))
         tuck = share * math.sin(math.pi * s) ** 2
         c0, c1, c = self.com(phase.t0), self.com(phase.t1), self.com(t)
+        start, end, now = self.turn(phase, blend)
         out = []
         for limb in phase.flight:
-            lerp = (1.0 - blend) * (limb.start[:3, 3] - c0) + blend * (limb.end[:3, 3] - c1)
-            aim = np.asarray(limb.tuck, dtype=np.float64) + np.array([0.0, 0.0, lift])
+            lerp = (1.0 - blend) * (start.T @ (limb.start[:3, 3] - c0)) + blend * (
+                end.T @ (limb.end[:3, 3] - c1)
+            )
+            aim = end.T @ (np.asarray(limb.tuck, dtype=np.float64) + np.array([0.0, 0.0, lift]))
             pose = np.eye(4)
-            pose[:3, 3] = c + lerp + tuck * (aim - lerp)
+            pose[:3, 3] = c + now @ (lerp + tuck * (aim - lerp))
             pose[:3, :3] = _slerp(limb.start[:3, :3], limb.end[:3, :3], blend)
             out.append((limb.limb, pose))
         return tuple(out)
@@ -252,6 +283,10 @@ class _Targets:
         # a fast COM: its target unsaturated, the trunk height aimed with it
         posture = np.array(phase.posture, dtype=np.float64)
         posture[:3] += com - self.com(phase.t0)
+        if phase.turn_from is not None:  # a turning flight: the trunk turns with its limbs
+            posture[3:7] = pin.Quaternion(
+                self.turn(phase, self.flight_blend(phase, t)[1])[2]
+            ).coeffs()
         return StepTargets(
             stance,
             com,
@@ -346,7 +381,7 @@ def _track_segment(
                 q = tracker.step(q, targets.at(previous + s * dt), dt, share)
         previous = t
         phase = spec.phases[targets.phase_index(t)]
-        check = checker.check(q, phase.stance)
+        check = checker.check(q, phase.stance, targets.released(targets.phase_index(t), t))
         com = np.asarray(pin.centerOfMass(model, checker.data, q), dtype=np.float64)
         out.checks.append(check)
         out.com_errors.append(float(np.linalg.norm(com - targets.com(t))))
@@ -401,9 +436,9 @@ def _blend_into(
         else:
             w = u * u * (3.0 - 2.0 * u)
             q = np.asarray(pin.interpolate(model, key.q, q_end, w), dtype=np.float64)
-        phase = targets.spec.phases[targets.phase_index(key.t)]
+        k = targets.phase_index(key.t)
         keyframes[i] = Keyframe(t=key.t, q=q, contacts=key.contacts)
-        checks[i] = checker.check(q, phase.stance)
+        checks[i] = checker.check(q, targets.spec.phases[k].stance, targets.released(k, key.t))
         com = np.asarray(pin.centerOfMass(model, checker.data, q), dtype=np.float64)
         com_errors[i] = float(np.linalg.norm(com - targets.com(key.t)))
     return np.array(keyframes[-1].q)

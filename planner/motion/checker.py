@@ -89,8 +89,12 @@ class KeyframeChecker:
             (i, o.geometry, str(o.name)) for i, o in enumerate(self.geometry.geometryObjects)
         ]
 
-    def check(self, q: FloatArray, stance: Sequence[LimbContact]) -> KeyframeCheck:
-        """The check of configuration ``q`` (nq,) holding ``stance``."""
+    def check(
+        self, q: FloatArray, stance: Sequence[LimbContact], resting: Sequence[LimbContact] = ()
+    ) -> KeyframeCheck:
+        """The check of configuration ``q`` (nq,) holding ``stance``. ``resting``: contacts
+        released less than a keyframe interval ago, their effectors still leaving their
+        surfaces: excepted like stance effectors, not counted in the hold error."""
         model, data = self.model, self.data
         pin.framesForwardKinematics(model, data, q)
         pin.updateGeometryPlacements(model, data, self.geometry, self.geometry_data)
@@ -102,6 +106,8 @@ class KeyframeChecker:
             frame = data.oMf[self.character.limb(contact.limb).frame_id]
             gap = frame.translation - contact.placement[:3, 3]
             hold = max(hold, float(np.sqrt(gap @ gap)))
+        for contact in resting:
+            skipped |= self.effectors[contact.limb]
         deepest, shape = 0.0, None
         settled = self.distances.settled_at(poses, 0.0)
         placements = self.geometry_data.oMg

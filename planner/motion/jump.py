@@ -282,6 +282,7 @@ def jump_spec(
                 flight_posture,
                 level_trunk=False,
                 flight=_flight_limbs(character, before, after),
+                turn_from=np.asarray(before.q[3:7], dtype=np.float64),
             )
         )
         t_takeoff, t = t, t + big_t

@@ -67,6 +67,10 @@ class MotionPhase:
     root position is then where the root is aimed at ``t0``). A flight implies it.
     rigid_stance : the stance contacts are equality constraints of the tracker's QP, not
     dominant costs (a takeoff push or a landing: the COM lags rather than drag them).
+    turn_from : for a flight, (4,) root quaternion (x, y, z, w) it takes off with: the trunk
+    and the carried limbs' offsets from the COM turn from it to ``posture``'s orientation
+    as the flight goes on, so that legs turning with the body do not cross (None: the trunk
+    is aimed at ``posture``'s orientation from the start).
     """
 
     t0: float
@@ -78,10 +82,13 @@ class MotionPhase:
     flight: tuple[FlightLimb, ...] | None = None
     fast_com: bool = False
     rigid_stance: bool = False
+    turn_from: FloatArray | None = None
 
     def __post_init__(self) -> None:
         if self.flight is not None and (self.stance or self.swing is not None):
             raise ValueError("a flight holds no stance and has no swing")
+        if self.turn_from is not None and self.flight is None:
+            raise ValueError("turn_from: only a flight turns")
 
 
 @dataclass(frozen=True, slots=True)

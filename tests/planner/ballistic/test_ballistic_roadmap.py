@@ -113,6 +113,33 @@ def test_query_returns_a_valid_jump_sequence(roadmap: Roadmap) -> None:
     assert path.cost == pytest.approx(float(path.duration.sum()))
 
 
+def test_a_node_whose_stance_is_refused_is_routed_around(roadmap: Roadmap) -> None:
+    """``node_clear`` vetoes nodes (a whole-body stance that collides where only the trunk
+    was checked): the path avoids every refused node, each node is asked once, and the
+    answer is a valid path all the same."""
+    _, world = gap_scene()
+    start, goal = node(0.5, 1.0, 0.4), node(7.5, 1.0, 0.4)
+    first = roadmap.query(start, goal, collides_many=world.inflated(GAP)).value
+    assert first is not None
+    vetoed = {int(k) for k in first.nodes[1:-1]}
+    asked: list[int] = []
+
+    def clear(i: int) -> bool:
+        asked.append(i)
+        return i not in vetoed
+
+    res = roadmap.query(start, goal, collides_many=world.inflated(GAP), node_clear=clear)
+    assert res.status is PlanStatus.SOLVED and res.value is not None
+    assert not vetoed & {int(k) for k in res.value.nodes[1:-1]}
+    assert res.stats["nodes_refused"] == len(vetoed)
+    assert len(asked) == len(set(asked))
+    assert START not in asked and GOAL not in asked
+    nothing = roadmap.query(
+        start, goal, collides_many=world.inflated(GAP), node_clear=lambda i: False
+    )
+    assert nothing.status is PlanStatus.INFEASIBLE
+
+
 def test_save_load_answers_identically(roadmap: Roadmap, tmp_path: Path) -> None:
     _, world = gap_scene()
     file = tmp_path / "roadmap.npz"

@@ -12,9 +12,11 @@ import pinocchio as pin
 
 from planner.contact.checks import make_contact
 from planner.contact.context import make_context
+from planner.contact.state import ContactState
 from planner.kinematics import com_position
 from planner.motion import tuning
 from planner.motion.builder import build_motion
+from planner.motion.jump import JumpLeg, build_jumps
 from planner.motion.spec import MotionPhase, MotionSpec
 from planner.motion.tracker import speed_limits
 from tests.planner.contact.contact_helpers import character_and_data, scene
@@ -172,3 +174,37 @@ def test_a_build_resumed_from_an_earlier_one_keeps_its_keyframes_and_goes_on() -
         assert abs(a.t - b.t) < 1e-9
         np.testing.assert_allclose(a.q, b.q, atol=1e-6)
     assert resumed.report.complete and resumed.report.phases_animated == 3
+
+
+def test_a_flight_that_turns_keeps_the_legs_apart() -> None:
+    """A jump whose landing faces 150 degrees away from its takeoff: the carried feet's
+    offsets from the COM turn with the trunk (``MotionPhase.turn_from``), so the legs do not
+    sweep through each other mid-flight (blending the offsets in the world frame brings
+    both feet to the middle at once)."""
+    character, data = character_and_data("humanoid")
+    ctx = make_context(scene("flat"), character, data)
+    model = character.model
+    q0 = np.array(character.q_ref)
+    yaw = np.deg2rad(150.0)
+    q1 = q0.copy()
+    q1[:2] += [0.6, 0.0]
+    q1[3:7] = [0.0, 0.0, np.sin(yaw / 2), np.cos(yaw / 2)]
+    feet = ("left_foot", "right_foot")
+    stances = [
+        ContactState(q, tuple(make_contact(ctx, name, q, 0) for name in feet)) for q in (q0, q1)
+    ]
+    c0, c1 = com_position(model, q0), com_position(model, q1)
+    duration, g = 0.5, 9.81
+    v0 = (c1 - c0 - 0.5 * np.array([0.0, 0.0, -g]) * duration**2) / duration
+    leg = JumpLeg(c0, v0, duration, g, np.zeros(3), 1.0, np.zeros(3), 1.0)
+    motion, (timing,) = build_jumps(character, ctx.scene.collision.bvh, stances, [leg])
+    assert motion.report.worst_self_depth <= tuning.SELF_PENETRATION_TOLERANCE
+    data_ = model.createData()
+    left, right = (character.limb(name).frame_id for name in feet)
+    gaps = []
+    for key in motion.keyframes:
+        if timing.takeoff < key.t < timing.touchdown:
+            pin.framesForwardKinematics(model, data_, key.q)
+            gaps.append(np.linalg.norm(data_.oMf[left].translation - data_.oMf[right].translation))
+    assert len(gaps) >= 10
+    assert min(gaps) > 0.1  # about the stance width all along; world blending gives ~0.02

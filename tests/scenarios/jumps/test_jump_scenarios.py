@@ -257,8 +257,6 @@ def test_keyframes_clear_of_the_scene(name: str) -> None:
     audit = _audit(name)
     assert audit.frames == len(_plan(name).keyframes)
     assert audit.coverage == 1.0
-    if name == "gaps_humanoid":
-        pytest.xfail("legs hit the platform sides on drops beside them (issue 12, jumps)")
     assert audit.root_jumps == 0, audit.summary()
     assert audit.penetrating_frames == 0, audit.summary()
 
