@@ -15,6 +15,7 @@ this rule is written; IK targets, recorded contacts and checks all go through th
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -27,6 +28,7 @@ from numpy.typing import NDArray
 from planner.character import Character, Limb
 from planner.contact.reachability import ground_limbs
 from planner.contact.state import LimbContact
+from planner.motion import tuning as motion_tuning
 from planner.scene import Surface
 
 FloatArray = NDArray[np.float64]
@@ -220,14 +222,41 @@ def lies_on(
 
 def self_collides(character: Character, q: FloatArray, data: Any, geometry_data: Any) -> bool:
     """Whether two body shapes of a declared collision pair intersect at ``q`` (nq,);
-    ``data`` and ``geometry_data`` are the character's Pinocchio scratch data."""
-    return bool(
-        pin.computeCollisions(
-            character.model,
-            data,
-            character.geometry,
-            geometry_data,
-            np.asarray(q, dtype=np.float64),
-            True,
-        )
-    )
+    ``data`` and ``geometry_data`` are the character's Pinocchio scratch data. Where the
+    character's motion geometry (the URDF's own shapes, which the keyframe checker tests)
+    is not its planning geometry, those shapes count too, when two of them overlap by more
+    than ``STATE_SELF_PENETRATION``: the motion builder could not hold such a state."""
+    q = np.asarray(q, dtype=np.float64)
+    model = character.model
+    if pin.computeCollisions(model, data, character.geometry, geometry_data, q, True):
+        return True
+    motion = _motion_geometry_data(character)
+    if motion is None:
+        return False
+    pin.updateGeometryPlacements(model, data, character.motion_geometry, motion)
+    return bool(pin.computeCollisions(character.motion_geometry, motion, True))
+
+
+_MOTION_DATA = threading.local()
+
+
+def _motion_geometry_data(character: Character) -> Any | None:
+    """This thread's GeometryData of ``character.motion_geometry``, its collision requests
+    reporting only overlaps deeper than ``STATE_SELF_PENETRATION`` (None when the motion
+    geometry is the planning geometry)."""
+    geometry = character.motion_geometry
+    if geometry is character.geometry:
+        return None
+    cache: dict[int, tuple[Any, Any]] | None = getattr(_MOTION_DATA, "by_geometry", None)
+    if cache is None:
+        cache = _MOTION_DATA.by_geometry = {}
+    hit = cache.get(id(geometry))
+    if hit is None or hit[0] is not geometry:
+        made = pin.GeometryData(geometry)
+        for request in made.collisionRequests:
+            request.security_margin = -motion_tuning.STATE_SELF_PENETRATION
+        if len(cache) >= 8:
+            cache.clear()
+        hit = (geometry, made)
+        cache[id(geometry)] = hit
+    return hit[1]

@@ -114,6 +114,11 @@ PENETRATION_TOLERANCE = 0.005
 SELF_PENETRATION_TOLERANCE = 0.005
 """m, two body parts deeper than this into each other make a keyframe collide."""
 
+STATE_SELF_PENETRATION = 0.0025
+"""m, two body parts (the URDF's collision shapes) deeper than this into each other make a
+contact state invalid (``planner.contact.body.self_collides``): half the keyframe
+tolerance, so that the motion into and out of the state has room."""
+
 HOLD_TOLERANCE = 0.005
 """m, a stance contact further than this from where it was placed has slipped."""
 
