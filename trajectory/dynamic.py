@@ -97,8 +97,13 @@ def _second_difference(degree: int) -> FloatArray:
     return out
 
 
-def _skew(u: FloatArray) -> FloatArray:
-    return np.array([[0.0, -u[2], u[1]], [u[2], 0.0, -u[0]], [-u[1], u[0], 0.0]])
+def _skews(u: FloatArray) -> FloatArray:
+    """(k, 3, 3) cross-product matrices [u_i]x of the rows of ``u`` (k, 3)."""
+    out = np.zeros((u.shape[0], 3, 3))
+    out[:, 0, 1], out[:, 0, 2] = -u[:, 2], u[:, 1]
+    out[:, 1, 0], out[:, 1, 2] = u[:, 2], -u[:, 0]
+    out[:, 2, 0], out[:, 2, 1] = -u[:, 1], u[:, 0]
+    return out
 
 
 class _Layout:
@@ -269,43 +274,44 @@ def _fixed_rows(
     # kinematics hold on the control points (the curve lies in their convex hull, so along
     # the whole phase, a little conservative), keeping only the rows the box can reach;
     # KINEMATIC_SLACK absorbs round-off of the states' own COMs on the boundary
-    blocks: list[sparse.coo_matrix] = []
+    data: list[FloatArray] = []
+    ri: list[NDArray[Any]] = []
+    ci: list[NDArray[Any]] = []
     bounds: list[FloatArray] = []
+    row = 0
     per_phase = (d + 1) * 3
     for j, kin in enumerate(kins):
         low = np.min(boxes[j], axis=0) - TRUST_RADIUS
         high = np.max(boxes[j], axis=0) + TRUST_RADIUS
         cols = np.arange(layout.point(j, 0), layout.point(j, 0) + per_phase)
-        eye = sparse.coo_matrix(
-            (np.ones(per_phase), (np.arange(per_phase), cols)), shape=(per_phase, layout.n)
-        )
-        blocks += [eye, -eye]
+        for sign in (1.0, -1.0):  # x <= high, -x <= -low
+            data.append(np.full(per_phase, sign))
+            ri.append(np.arange(row, row + per_phase))
+            ci.append(cols)
+            row += per_phase
         bounds += [np.tile(high, d + 1), -np.tile(low, d + 1)]
         if kin is None or kin.A.shape[0] == 0:
             continue
         centre, half = 0.5 * (low + high), 0.5 * (high - low)
         reachable = kin.A @ centre + np.abs(kin.A) @ half > kin.b + KINEMATIC_SLACK
         a_rows, b_rows = kin.A[reachable], kin.b[reachable]
-        if a_rows.shape[0] == 0:
+        k = a_rows.shape[0]
+        if k == 0:
             continue
-        for i in range(d + 1):
-            col = layout.point(j, i)
-            rows_k = np.repeat(np.arange(a_rows.shape[0]), 3)
-            cols_k = np.tile(np.arange(col, col + 3), a_rows.shape[0])
-            blocks.append(
-                sparse.coo_matrix(
-                    (a_rows.ravel(), (rows_k, cols_k)), shape=(a_rows.shape[0], layout.n)
-                )
-            )
-            bounds.append(b_rows + KINEMATIC_SLACK)
+        # the k rows for each control point in turn: (d + 1) k rows of 3 entries
+        data.append(np.tile(a_rows.ravel(), d + 1))
+        ri.append(np.repeat(np.arange(row, row + (d + 1) * k), 3))
+        ci.append(np.repeat(cols.reshape(d + 1, 3), k, axis=0).ravel())
+        bounds += [b_rows + KINEMATIC_SLACK] * (d + 1)
+        row += (d + 1) * k
     margin = np.arange(layout.n_curve, layout.n)
-    blocks.append(
-        sparse.coo_matrix(
-            (-np.ones(margin.size), (np.arange(margin.size), margin)),
-            shape=(margin.size, layout.n),
-        )
-    )
-    in_rows = sparse.vstack(blocks).tocsr()
+    data.append(-np.ones(margin.size))
+    ri.append(np.arange(row, row + margin.size))
+    ci.append(margin)
+    row += margin.size
+    in_rows = sparse.coo_matrix(
+        (np.concatenate(data), (np.concatenate(ri), np.concatenate(ci))), shape=(row, layout.n)
+    ).tocsr()
     in_rhs = np.concatenate(bounds) if bounds else np.zeros(0)
     return eq, np.asarray(rhs), in_rows, in_rhs
 
@@ -359,7 +365,8 @@ def _wrench_rows(
     lin: Sequence[tuple[FloatArray, FloatArray]],
 ) -> tuple[sparse.csr_matrix, FloatArray]:
     """Eq. 1 at every collocation sample, linearised about ``lin`` (per phase, the sample
-    positions and accelerations), in body weights: G' beta - w_lin(c, a) = w_const."""
+    positions and accelerations), in body weights: G' beta - w_lin(c, a) = w_const; six rows
+    per sample, phase by phase."""
     data: list[FloatArray] = []
     ri: list[NDArray[Any]] = []
     ci: list[NDArray[Any]] = []
@@ -368,35 +375,37 @@ def _wrench_rows(
     row = 0
     for j, phase in enumerate(phases):
         gens = phase.wrench_generators  # (m, 6): G' beta = w / (m g), beta in body weights
+        c_bar, a_bar = lin[j]  # (s, 3) each
+        n_s = c_bar.shape[0]
         duration = times[j + 1] - times[j]
         cols = np.array([layout.point(j, i) for i in range(basis.shape[1])])
         curve_cols = (cols[:, None] + np.arange(3)[None, :]).ravel()  # (3 (d + 1),)
-        for s, (c_bar, a_bar) in enumerate(zip(*lin[j], strict=True)):
-            # per unit mass: force a - g; torque c x (a - g) ~ -[a_-g]x c + [c_]x a - c_ x a_
-            dc = np.zeros((6, 3))
-            da = np.zeros((6, 3))
-            da[:3] = np.eye(3)
-            dc[3:] = -_skew(a_bar - gvec)
-            da[3:] = _skew(c_bar)
-            # (6, d + 1, 3) -> (6, 3 (d + 1)), columns in the order of curve_cols
-            block = (
-                -(
-                    basis[s][None, :, None] * dc[:, None, :]
-                    + (basis2[s] / duration**2)[None, :, None] * da[:, None, :]
-                )
-                / GRAVITY
+        # per unit mass: force a - g; torque c x (a - g) ~ -[a_-g]x c + [c_]x a - c_ x a_
+        dc = np.zeros((n_s, 6, 3))
+        da = np.zeros((n_s, 6, 3))
+        da[:, :3] = np.eye(3)
+        dc[:, 3:] = -_skews(a_bar - gvec)
+        da[:, 3:] = _skews(c_bar)
+        # (s, 6, d + 1, 3) -> (6 s, 3 (d + 1)), columns in the order of curve_cols
+        block = (
+            -(
+                basis[:, None, :, None] * dc[:, :, None, :]
+                + (basis2 / duration**2)[:, None, :, None] * da[:, :, None, :]
             )
-            rows6 = np.arange(row, row + 6)
-            ri.append(np.repeat(rows6, curve_cols.size))
-            ci.append(np.tile(curve_cols, 6))
-            data.append(block.reshape(6, -1).ravel())
-            first = layout.weights_at[j][s]
-            weight_cols = np.arange(first, first + gens.shape[0])
-            ri.append(np.repeat(rows6, weight_cols.size))
-            ci.append(np.tile(weight_cols, 6))
-            data.append(gens.T.ravel())
-            rhs.append(np.concatenate([-gvec, -np.cross(c_bar, a_bar)]) / GRAVITY)
-            row += 6
+            / GRAVITY
+        )
+        rows = np.arange(row, row + 6 * n_s)
+        ri.append(np.repeat(rows, curve_cols.size))
+        ci.append(np.tile(curve_cols, rows.size))
+        data.append(block.ravel())
+        firsts = np.asarray(layout.weights_at[j])
+        m = gens.shape[0]
+        ri.append(np.repeat(rows, m))
+        ci.append(np.repeat(firsts, 6 * m) + np.tile(np.arange(m), 6 * n_s))
+        data.append(np.tile(gens.T.ravel(), n_s))
+        torque = -np.cross(c_bar, a_bar)
+        rhs.append((np.hstack([np.tile(-gvec, (n_s, 1)), torque]) / GRAVITY).ravel())
+        row += 6 * n_s
     matrix = sparse.coo_matrix(
         (np.concatenate(data), (np.concatenate(ri), np.concatenate(ci))), shape=(row, layout.n)
     )
