@@ -350,6 +350,15 @@ LAZY_ROW_MARGIN = 1e-3
 """m: when a row left out is broken, every row left out that the answer comes within this
 of is put in too (fewer rounds; a row that does not bind leaves the optimum as it is)."""
 
+SOLVER_REFINEMENT = False
+"""Whether Clarabel first solves with iterative refinement of its KKT solves (its default is
+on): off halves the time of a solve, and moved the control points by less than 3e-7 m on the
+captured plans' QPs. A run that ends neither solved nor infeasible is repeated with it on."""
+
+_INFEASIBLE = frozenset(
+    {clarabel.SolverStatus.PrimalInfeasible, clarabel.SolverStatus.DualInfeasible}
+)
+
 SOLVER_TOLERANCE = 1e-10
 """Clarabel's gap and feasibility tolerances (its default is 1e-8). At the default the answer
 of a QP without its idle rows stopped up to 5e-5 m (control points) from that of the QP with
@@ -502,14 +511,20 @@ def _solve(
     a_in: sparse.spmatrix,
     b_in: FloatArray,
 ) -> FloatArray | None:
-    """min 0.5 x'Px + q'x s.t. a_eq x = b_eq, a_in x <= b_in; None unless solved."""
+    """min 0.5 x'Px + q'x s.t. a_eq x = b_eq, a_in x <= b_in; None unless solved. Solved
+    without refining the KKT solves first (``SOLVER_REFINEMENT``), again with refinement
+    when that run ends neither solved nor with an infeasibility certificate."""
     a = sparse.vstack([a_eq, a_in]).tocsc()
     b = np.concatenate([b_eq, b_in])
-    settings = clarabel.DefaultSettings()
-    settings.verbose = False
-    settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = SOLVER_TOLERANCE
     cones = [clarabel.ZeroConeT(a_eq.shape[0]), clarabel.NonnegativeConeT(a_in.shape[0])]
-    solution = clarabel.DefaultSolver(p, q, a, b, cones, settings).solve()
+    for refine in dict.fromkeys((SOLVER_REFINEMENT, True)):
+        settings = clarabel.DefaultSettings()
+        settings.verbose = False
+        settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = SOLVER_TOLERANCE
+        settings.iterative_refinement_enable = refine
+        solution = clarabel.DefaultSolver(p, q, a, b, cones, settings).solve()
+        if solution.status == clarabel.SolverStatus.Solved or solution.status in _INFEASIBLE:
+            break
     if solution.status != clarabel.SolverStatus.Solved:
         return None
     x = np.asarray(solution.x, dtype=np.float64)
