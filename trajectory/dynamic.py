@@ -355,9 +355,14 @@ SOLVER_REFINEMENT = False
 on): off halves the time of a solve, and moved the control points by less than 3e-7 m on the
 captured plans' QPs. A run that ends neither solved nor infeasible is repeated with it on."""
 
-_INFEASIBLE = frozenset(
-    {clarabel.SolverStatus.PrimalInfeasible, clarabel.SolverStatus.DualInfeasible}
+_SETTLED = frozenset(
+    {
+        clarabel.SolverStatus.Solved,
+        clarabel.SolverStatus.PrimalInfeasible,
+        clarabel.SolverStatus.DualInfeasible,
+    }
 )
+"""Clarabel's statuses that are taken as they are (the others are run again refined)."""
 
 SOLVER_TOLERANCE = 1e-10
 """Clarabel's gap and feasibility tolerances (its default is 1e-8). At the default the answer
@@ -517,13 +522,13 @@ def _solve(
     a = sparse.vstack([a_eq, a_in]).tocsc()
     b = np.concatenate([b_eq, b_in])
     cones = [clarabel.ZeroConeT(a_eq.shape[0]), clarabel.NonnegativeConeT(a_in.shape[0])]
-    for refine in dict.fromkeys((SOLVER_REFINEMENT, True)):
+    for refine in (SOLVER_REFINEMENT, True):
         settings = clarabel.DefaultSettings()
         settings.verbose = False
         settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = SOLVER_TOLERANCE
         settings.iterative_refinement_enable = refine
         solution = clarabel.DefaultSolver(p, q, a, b, cones, settings).solve()
-        if solution.status == clarabel.SolverStatus.Solved or solution.status in _INFEASIBLE:
+        if refine or solution.status in _SETTLED:
             break
     if solution.status != clarabel.SolverStatus.Solved:
         return None

@@ -258,3 +258,36 @@ def test_rows_left_out_still_make_an_infeasible_qp_infeasible() -> None:
             )
             is None
         )
+
+
+def test_a_run_without_refinement_that_does_not_settle_is_run_again_refined(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Clarabel's unrefined run ending at its iteration limit: the QP is solved again with
+    refinement, and the answer is the one a refined run gives."""
+    phases, durations, start, end = _walk(3, 0.4, 0.15)
+    clarabel = trajectory.dynamic.clarabel
+    real = clarabel.DefaultSolver
+    runs: list[bool] = []
+
+    class Unsettled:
+        status = clarabel.SolverStatus.MaxIterations
+        x = ()
+
+    class Solver:
+        def __init__(self, *args: Any) -> None:
+            self.refine = bool(args[-1].iterative_refinement_enable)
+            self.solver = real(*args)
+
+        def solve(self) -> Any:
+            runs.append(self.refine)
+            return self.solver.solve() if self.refine else Unsettled()
+
+    monkeypatch.setattr(clarabel, "DefaultSolver", Solver)
+    retried = trajectory.dynamic_com(phases, durations, start, end)
+    monkeypatch.undo()
+    monkeypatch.setattr(trajectory.dynamic, "SOLVER_REFINEMENT", True)
+    refined = trajectory.dynamic_com(phases, durations, start, end)
+    assert runs[:2] == [False, True] and retried is not None and refined is not None
+    for a, b in zip(retried.curve.segments, refined.curve.segments, strict=True):
+        np.testing.assert_array_equal(a.control_points, b.control_points)
