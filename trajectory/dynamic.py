@@ -15,8 +15,8 @@ Eq. 1 holds at every collocation time (checked with the same robustness LP as
 Units: metres, seconds, world frame z up; weights are in body weights (m g) for
 conditioning. The QP is sparse and solved by Clarabel (interior point, deterministic). The
 rows on the curve alone (trust box, kinematics: most of the QP's rows, and hardly ever
-binding) enter it only once an answer comes near them (``DynamicSettings.lazy_rows``): the
-same optimum from a QP a few times smaller.
+binding) enter it only once an answer breaks one of them (``DynamicSettings.lazy_rows``):
+the same optimum from a QP a few times smaller.
 """
 
 from __future__ import annotations
@@ -53,8 +53,8 @@ class DynamicSettings:
         above what the legs reach in double support, and the body raised an arm to follow.
     force_weight : cost of the squared generator weights (spreads the force over contacts).
     lazy_rows : the inequality rows on the curve alone (trust box, kinematics) enter the QP
-        only when an answer comes within ``LAZY_ROW_MARGIN`` of them (the same optimum, a
-        smaller QP); False puts them all in from the start (for comparisons).
+        only once an answer breaks one of them (the same optimum, a smaller QP); False puts
+        them all in from the start (for comparisons).
     """
 
     degree: int = 7
