@@ -197,3 +197,97 @@ def test_a_window_found_again_joins_its_neighbours_c2() -> None:
     np.testing.assert_allclose(window.phase_times, np.concatenate([[0], np.cumsum(slower)]))
     with pytest.raises(ValueError, match="start"):
         trajectory.dynamic_com(phases[3:5], slower, start, after.control_points[0], before=before)
+
+
+def test_rows_left_out_until_needed_give_the_answer_of_the_qp_with_every_row(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """``lazy_rows``: a kinematic wall the free curve would cross (y <= 4 mm; it sways
+    8.5 mm) enters the QP once an answer crosses it. Every QP's answer then satisfies every
+    row of the whole QP to 1e-6 and its control points are those of the whole QP solved at
+    once to 1e-6 m; so is the final curve, and the wall holds along it."""
+    phases, durations, start, end = _walk(5, 0.4, 0.15)
+    wall = Halfspaces(np.array([[0.0, 1.0, 0.0]]), np.array([0.004]))
+    solves: list[tuple[tuple[Any, ...], Any, Any]] = []
+    original = trajectory.dynamic._solve_lazy
+
+    def recording(*args: Any) -> Any:
+        x, working = original(*args)
+        solves.append((args, x, working))
+        return x, working
+
+    monkeypatch.setattr(trajectory.dynamic, "_solve_lazy", recording)
+    lazy = trajectory.dynamic_com(phases, durations, start, end, kinematics=[wall] * 5)
+    monkeypatch.undo()
+    every = trajectory.dynamic_com(
+        phases,
+        durations,
+        start,
+        end,
+        kinematics=[wall] * 5,
+        settings=trajectory.DynamicSettings(lazy_rows=False),
+    )
+    assert lazy is not None and lazy.valid and every is not None
+    n_curve = 5 * (trajectory.DynamicSettings().degree + 1) * 3
+    added = 0
+    for (n, p, q, a_eq, b_eq, a_in, b_in, working), x, used in solves:
+        assert x is not None
+        np.testing.assert_allclose(a_eq @ x, b_eq, atol=1e-6)
+        assert float(np.max(a_in @ x - b_in)) <= 1e-6
+        whole = trajectory.dynamic._solve(n, p, q, a_eq, b_eq, a_in, b_in)
+        assert whole is not None
+        np.testing.assert_allclose(x[:n_curve], whole[:n_curve], atol=1e-6)
+        added += int(used.sum() - working.sum())
+    assert added > 0  # the wall's rows did enter
+    for a, b in zip(lazy.curve.segments, every.curve.segments, strict=True):
+        np.testing.assert_allclose(a.control_points, b.control_points, atol=1e-6)
+    y = lazy.curve(np.linspace(0, lazy.curve.t1, 300))[:, 1]
+    assert y.max() <= 0.004 + trajectory.dynamic.KINEMATIC_SLACK + 1e-9
+    assert y.max() > 0.004  # the wall binds
+
+
+def test_rows_left_out_still_make_an_infeasible_qp_infeasible() -> None:
+    """A ceiling 5 cm below the start (a row left out at first): None, as with every row."""
+    phases, durations, start, end = _walk(5, 0.4, 0.15)
+    ceiling = Halfspaces(np.array([[0.0, 0.0, 1.0]]), np.array([HEIGHT - 0.05]))
+    for lazy_rows in (True, False):
+        settings = trajectory.DynamicSettings(lazy_rows=lazy_rows)
+        assert (
+            trajectory.dynamic_com(
+                phases, durations, start, end, kinematics=[ceiling] * 5, settings=settings
+            )
+            is None
+        )
+
+
+def test_a_run_without_refinement_that_does_not_settle_is_run_again_refined(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Clarabel's unrefined run ending at its iteration limit: the QP is solved again with
+    refinement, and the answer is the one a refined run gives."""
+    phases, durations, start, end = _walk(3, 0.4, 0.15)
+    clarabel = trajectory.dynamic.clarabel
+    real = clarabel.DefaultSolver
+    runs: list[bool] = []
+
+    class Unsettled:
+        status = clarabel.SolverStatus.MaxIterations
+        x = ()
+
+    class Solver:
+        def __init__(self, *args: Any) -> None:
+            self.refine = bool(args[-1].iterative_refinement_enable)
+            self.solver = real(*args)
+
+        def solve(self) -> Any:
+            runs.append(self.refine)
+            return self.solver.solve() if self.refine else Unsettled()
+
+    monkeypatch.setattr(clarabel, "DefaultSolver", Solver)
+    retried = trajectory.dynamic_com(phases, durations, start, end)
+    monkeypatch.undo()
+    monkeypatch.setattr(trajectory.dynamic, "SOLVER_REFINEMENT", True)
+    refined = trajectory.dynamic_com(phases, durations, start, end)
+    assert runs[:2] == [False, True] and retried is not None and refined is not None
+    for a, b in zip(retried.curve.segments, refined.curve.segments, strict=True):
+        np.testing.assert_array_equal(a.control_points, b.control_points)
