@@ -14,7 +14,7 @@ import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -28,9 +28,6 @@ from planner.motion.spec import MotionPhase, MotionSpec
 from planner.motion.tracker import StepTargets, WholeBodyTracker
 from planner.motion.types import ComSegment, Keyframe, Phase
 from planner.termination import Termination, never
-
-if TYPE_CHECKING:  # annotations only: planner.contact imports planner.motion
-    from planner.contact.state import LimbContact
 
 FloatArray = NDArray[np.float64]
 
@@ -202,14 +199,12 @@ class _Targets:
             )
         return self._arcs[key]
 
-    def released(self, k: int, t: float) -> tuple[LimbContact, ...]:
-        """The contacts of phase ``k - 1``'s stance that phase ``k`` no longer holds, while
-        ``t`` is less than a keyframe interval into phase ``k`` (the effectors are leaving
-        their surfaces); none later."""
-        if k == 0 or t - self.spec.phases[k].t0 >= 1.0 / self.spec.rate:
+    def released(self, k: int) -> tuple[str, ...]:
+        """The limbs of phase ``k - 1``'s stance that phase ``k`` no longer holds."""
+        if k == 0:
             return ()
         held = {c.limb for c in self.spec.phases[k].stance}
-        return tuple(c for c in self.spec.phases[k - 1].stance if c.limb not in held)
+        return tuple(c.limb for c in self.spec.phases[k - 1].stance if c.limb not in held)
 
     def com(self, t: float) -> FloatArray:
         """(3,) m, the COM curve at ``t`` (clamped to its span)."""
@@ -362,11 +357,13 @@ def _track_segment(
     previous: float | None,
     until: Termination,
 ) -> _Segment:
-    """Track from ``q_start`` (nq,) at time ``previous`` through the keyframe ``times``."""
+    """Track from ``q_start`` (nq,) at time ``previous`` through the keyframe ``times`` (of
+    one phase); the effectors the phase lifts may stay as deep as they are at ``q_start``."""
     spec = targets.spec
     model = tracker.model
     q = np.array(q_start, dtype=np.float64)
     out = _Segment([], [], [], q, 0.0)
+    lifting = checker.depths(q, targets.released(targets.phase_index(times[0]))) if times else {}
     for t in times:
         if previous is not None:
             if until():
@@ -381,7 +378,7 @@ def _track_segment(
                 q = tracker.step(q, targets.at(previous + s * dt), dt, share)
         previous = t
         phase = spec.phases[targets.phase_index(t)]
-        check = checker.check(q, phase.stance, targets.released(targets.phase_index(t), t))
+        check = checker.check(q, phase.stance, lifting)
         com = np.asarray(pin.centerOfMass(model, checker.data, q), dtype=np.float64)
         out.checks.append(check)
         out.com_errors.append(float(np.linalg.norm(com - targets.com(t))))
@@ -438,7 +435,7 @@ def _blend_into(
             q = np.asarray(pin.interpolate(model, key.q, q_end, w), dtype=np.float64)
         k = targets.phase_index(key.t)
         keyframes[i] = Keyframe(t=key.t, q=q, contacts=key.contacts)
-        checks[i] = checker.check(q, targets.spec.phases[k].stance, targets.released(k, key.t))
+        checks[i] = checker.check(q, targets.spec.phases[k].stance)
         com = np.asarray(pin.centerOfMass(model, checker.data, q), dtype=np.float64)
         com_errors[i] = float(np.linalg.norm(com - targets.com(key.t)))
     return np.array(keyframes[-1].q)

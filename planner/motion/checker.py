@@ -8,7 +8,7 @@ shapes against the scene BVH, static obstacles and each other (the declared pair
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -90,11 +90,15 @@ class KeyframeChecker:
         ]
 
     def check(
-        self, q: FloatArray, stance: Sequence[LimbContact], resting: Sequence[LimbContact] = ()
+        self,
+        q: FloatArray,
+        stance: Sequence[LimbContact],
+        lifting: Mapping[int, float] | None = None,
     ) -> KeyframeCheck:
-        """The check of configuration ``q`` (nq,) holding ``stance``. ``resting``: contacts
-        released less than a keyframe interval ago, their effectors still leaving their
-        surfaces: excepted like stance effectors, not counted in the hold error."""
+        """The check of configuration ``q`` (nq,) holding ``stance``. ``lifting``: shapes of
+        effectors that left their contacts (shape index: m, how deep it was then, see
+        :meth:`depths`): such a shape may stay that deep (plus ``SWING_SECURITY_MARGIN``),
+        as the tracker lets it, not deeper."""
         model, data = self.model, self.data
         pin.framesForwardKinematics(model, data, q)
         pin.updateGeometryPlacements(model, data, self.geometry, self.geometry_data)
@@ -106,16 +110,17 @@ class KeyframeChecker:
             frame = data.oMf[self.character.limb(contact.limb).frame_id]
             gap = frame.translation - contact.placement[:3, 3]
             hold = max(hold, float(np.sqrt(gap @ gap)))
-        for contact in resting:
-            skipped |= self.effectors[contact.limb]
+        allowed = lifting or {}
         deepest, shape = 0.0, None
         settled = self.distances.settled_at(poses, 0.0)
         placements = self.geometry_data.oMg
         for i, geometry, name in self.shapes:
             if i in skipped or settled[i]:
                 continue
-            d = self.distances.nearest(geometry, placements[i])
+            d = self.distances.deepest(geometry, placements[i])
             self.distances.remember(i, d)
+            if i in allowed and -d <= allowed[i] + tuning.SWING_SECURITY_MARGIN:
+                continue
             if -d > deepest:
                 deepest, shape = -d, name
         self_depth = 0.0
@@ -125,3 +130,18 @@ class KeyframeChecker:
             self.broad.remember(k, d)
             self_depth = max(self_depth, -d)
         return KeyframeCheck(deepest, shape, self_depth, hold)
+
+    def depths(self, q: FloatArray, limbs: Sequence[str]) -> dict[int, float]:
+        """Per shape index of the effectors of ``limbs``, m how deep it is in the scene at
+        ``q`` (nq,) (0 when clear)."""
+        if not limbs:
+            return {}
+        pin.framesForwardKinematics(self.model, self.data, q)
+        pin.updateGeometryPlacements(self.model, self.data, self.geometry, self.geometry_data)
+        placements = self.geometry_data.oMg
+        out = {}
+        for limb in limbs:
+            for i in self.effectors[limb]:
+                d = self.distances.deepest(self.shapes[i][1], placements[i])
+                out[i] = max(0.0, -d)
+        return out

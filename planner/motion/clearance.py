@@ -162,6 +162,25 @@ class SceneDistances:
         """The smallest signed distance of ``geometry`` at ``placement`` to any target."""
         return min(d for d, _ in self.each(geometry, placement))
 
+    def deepest(self, geometry: Any, placement: Any) -> float:
+        """:meth:`nearest`, and when that is negative (inside), the deepest penetration of
+        ``geometry`` into any one of the targets' triangles (negative): coal's signed
+        distance to a triangle soup is the nearest triangle's, which a shape pushed through
+        a face toward an edge reports as shallow."""
+        d = self.nearest(geometry, placement)
+        if d >= 0.0:
+            return d
+        transform = coal.Transform3s(placement.rotation, placement.translation)
+        request = coal.CollisionRequest()
+        request.enable_contact = True
+        request.num_max_contacts = tuning.MAX_DEPTH_CONTACTS
+        for target, target_tf in self.targets:
+            result = coal.CollisionResult()
+            coal.collide(target, target_tf, geometry, transform, request, result)
+            for contact in result.getContacts():
+                d = min(d, float(contact.penetration_depth))
+        return d
+
     def settled(self, geometry_data: Any, threshold: float) -> NDArray[np.bool_]:
         """(G,) whether each shape, at the placements of ``geometry_data`` (updated by the
         caller), is surely farther than ``threshold`` m from every target: its last

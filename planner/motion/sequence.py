@@ -11,7 +11,7 @@ it with the whole body (2PAC section 7.2).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -328,6 +328,94 @@ def _dynamic_window(
     )
 
 
+def _rest_point(model: Any, states: Sequence[ContactState], j: int) -> FloatArray:
+    """(3,) m, where the COM may stop between phases j and j + 1 (j = -1: the start, j =
+    n - 1: the end): the COM of whichever of the two states holds fewer contacts. Its
+    contacts are the other's but one, and the contact planner balanced it with a margin, so
+    it stands in both phases (2PAC's transition point lies on the edge of the smaller
+    phase's support, where Eq. 1 with a margin has no solution)."""
+    n = len(states)
+    if j < 0 or j >= n - 1:
+        return com_position(model, states[0 if j < 0 else -1].q)
+    a, b = states[j], states[j + 1]
+    fewer = a if len(a.contacts) <= len(b.contacts) else b
+    return com_position(model, fewer.q)
+
+
+def _rest_window(
+    character: Character,
+    data: OfflineData,
+    states: Sequence[ContactState],
+    reference: trajectory.ComTrajectory,
+    earlier: trajectory.DynamicCom,
+    factors: Sequence[float],
+    window: tuple[int, int],
+    speed: float = 1.0,
+    resting: Collection[int] = (),
+    levels: Sequence[float] = tuning.DYNAMIC_SLOWDOWNS,
+) -> tuple[trajectory.DynamicCom, list[float], int] | None:
+    """``earlier``'s curve with the phases of ``window`` [lo, hi) stopping between phases
+    instead (a rest-to-rest quintic per phase from :func:`_rest_point` to the next, as
+    2PAC's own fallback, each lasting at least :func:`swing_durations`), and the dynamic
+    phases on each side of the window found again, at rest at the window's ends and joined
+    C2 to the rest: the phase next to the window, else ``REST_SIDE_BEFORE`` phases before it
+    or every phase after it up to the next ``resting`` one, each slowed through ``levels``
+    until its QP passes Eq. 1 (a side already ``resting`` stops at the window's end too and
+    is kept). The phases after the window are shifted in time. Returns the curve, the
+    factors used and the first phase whose curve changed, or None when a side has no curve
+    at any level. ``DynamicCom.valid`` then says only that the dynamic phases pass; the
+    window's are quasi-static."""
+    lo, hi = window
+    n = len(states)
+    model = character.model
+    points = [_rest_point(model, states, j) for j in range(lo - 1, hi)]
+    rest, rest_times = rest_to_rest(
+        np.stack(points),
+        min_durations=swing_durations(character, states, speed)[lo:hi],
+        max_acceleration=tuning.FALLBACK_MAX_ACCELERATION,
+    )
+    degree = earlier.curve.segments[0].degree
+    rested = [seg.elevate(degree - seg.degree) for seg in rest.segments]
+    around = [*earlier.curve.segments[:lo], *rested, *earlier.curve.segments[hi:]]
+    durations = np.diff(earlier.phase_times).tolist()
+    durations[lo:hi] = np.diff(rest_times).tolist()
+    floor = max((j + 1 for j in resting if j < lo), default=0)
+    ceiling = min((j for j in resting if j >= hi), default=n)
+    sides = []
+    if lo - 1 >= floor:
+        sides.append(((lo - 1, lo), (max(floor, lo - tuning.REST_SIDE_BEFORE), lo)))
+    if hi < ceiling:
+        sides.append(((hi, hi + 1), (hi, ceiling)))
+    used = list(factors)
+    first = lo
+    for options in sides:
+        placed = False
+        for a, b in dict.fromkeys(options):
+            trial: list[float] | None = used
+            while trial is not None and not placed:
+                found = _dynamic_window(
+                    character, data, states, reference, speed, trial, a, b, around
+                )
+                if found is not None and found.valid:
+                    around[a:b] = found.curve.segments
+                    durations[a:b] = np.diff(found.phase_times).tolist()
+                    used, placed, first = trial, True, min(first, a)
+                trial = _slower(trial, a, b, levels)
+            if placed:
+                break
+        if not placed:
+            return None
+    start = float(earlier.phase_times[0])
+    times = np.concatenate([[start], start + np.cumsum(durations)])
+    segments = tuple(
+        seg.retimed(float(times[j]), float(times[j + 1])) for j, seg in enumerate(around)
+    )
+    spliced = trajectory.DynamicCom(
+        trajectory.PiecewiseBezier(segments), times, earlier.iterations, earlier.valid
+    )
+    return spliced, used, first
+
+
 def _slower(
     factors: Sequence[float], lo: int, hi: int, levels: Sequence[float]
 ) -> list[float] | None:
@@ -446,7 +534,7 @@ def sequence_motion(
                     state.contacts,
                     posture,
                     swing,
-                    rigid_stance=trial,
+                    rigid_stance=trial and k not in resting,
                 )
             )
         spec = MotionSpec(np.asarray(states[0].q), tuple(spec_phases), curve, rate)
@@ -482,6 +570,7 @@ def sequence_motion(
             trials.append(dynamic_refused)
     keep: tuple[BuiltMotion, int] | None = None
     builds = max(tuning.DYNAMIC_MAX_BUILDS, math.ceil(tuning.DYNAMIC_BUILDS_PER_PHASE * n))
+    resting: set[int] = set()  # phases stopping at their transition points (2PAC's fallback)
     for _ in range(builds):
         if dynamic is None:
             break
@@ -491,7 +580,7 @@ def sequence_motion(
         if unplayable is None or candidate.report.cut_short:
             built, factors = candidate, factors_tried
             curve, times = dynamic.curve, times_d
-            methods = ("2pac+dynamic",) * n
+            methods = tuple("rest_to_rest" if j in resting else "2pac+dynamic" for j in range(n))
             break
         bad = candidate.report.abandoned_phase
         if bad is None:  # not abandoned (a shortfall only the whole motion shows)
@@ -500,10 +589,17 @@ def sequence_motion(
             f"phase {bad} at {factors_tried[bad]:g} times the brisk durations: {unplayable}"
         )
         trials.append(dynamic_refused)
-        lo = max(0, bad - tuning.DYNAMIC_WINDOW_BEFORE)
+        if bad in resting:
+            trials.append(f"phase {bad} fails even stopping at its transition points")
+            break
+        # the window around the failing phase, short of the phases already stopping
+        floor = max((j + 1 for j in resting if j < bad), default=0)
+        ceiling = min((j for j in resting if j > bad), default=n)
+        lo = max(floor, bad - tuning.DYNAMIC_WINDOW_BEFORE)
+        near = min(ceiling, bad + 1 + tuning.DYNAMIC_WINDOW_AFTER)
         found: trajectory.DynamicCom | None = None
         why = f"phases {lo} on: no slower level left"
-        for hi in (min(n, bad + 1 + tuning.DYNAMIC_WINDOW_AFTER), n):
+        for hi in dict.fromkeys((near, ceiling)):
             slower = _slower(factors_tried, lo, hi, levels)
             if slower is None:
                 break
@@ -514,10 +610,30 @@ def sequence_motion(
                 factors_tried = slower
                 break
             why = f"no curve passes Eq. 1 slower from phase {lo} on"
-        if found is None:
-            trials.append(why)
+        if found is not None:
+            dynamic, keep = found, (candidate, lo)
+            continue
+        # slowing cannot help: the window stops at its transition points (2PAC's fallback),
+        # the dynamic curve kept on both sides of it
+        stopped = _rest_window(
+            character,
+            data,
+            states,
+            com_trajectory,
+            dynamic,
+            factors_tried,
+            (lo, near),
+            speed,
+            resting,
+            levels,
+        )
+        if stopped is None:
+            trials.append(f"{why}; no dynamic curve joins a stop at phases {lo} to {near - 1}")
             break
-        dynamic, keep = found, (candidate, lo)
+        trials.append(f"{why}: phases {lo} to {near - 1} stop at their transition points")
+        resting.update(range(lo, near))
+        dynamic, factors_tried, first = stopped
+        keep = (candidate, first)
     else:
         if dynamic is not None and n >= 2:
             trials.append(f"no clean curve after {builds} trial builds")

@@ -119,6 +119,10 @@ STATE_SELF_PENETRATION = 0.0025
 contact state invalid (``planner.contact.body.self_collides``): half the keyframe
 tolerance, so that the motion into and out of the state has room."""
 
+MAX_DEPTH_CONTACTS = 64
+"""Contacts coal reports per shape when a keyframe's shape is inside the scene: the deepest of
+them is the shape's depth (the nearest triangle alone understates it)."""
+
 HOLD_TOLERANCE = 0.005
 """m, a stance contact further than this from where it was placed has slipped."""
 
@@ -237,6 +241,11 @@ DYNAMIC_WINDOW_AFTER = 1
 """Phases after it slowed with it; the curve of the window is found again joined C2 to the
 rest, which is kept (later phases shifted in time). When no such window curve passes Eq. 1,
 the window reaches to the plan's end."""
+
+REST_SIDE_BEFORE = 3
+"""Where slowing a window cannot make it clean, it stops at its transition points (2PAC's
+fallback) and the dynamic curve is found again on each side to stop there: the one phase
+next to it, else up to this many phases before it (or every phase after it)."""
 
 DYNAMIC_MAX_BUILDS = 6
 """Trial builds of dynamic curves before a plan keeps 2PAC's curve, at least (a longer plan

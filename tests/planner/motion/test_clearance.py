@@ -71,7 +71,7 @@ def test_the_keyframe_check_equals_the_brute_force_one(cid: str) -> None:
         deepest = max(
             0.0,
             *(
-                -brute.nearest(o.geometry, gdata.oMg[i])
+                -brute.deepest(o.geometry, gdata.oMg[i])
                 for i, o in enumerate(geometry.geometryObjects)
             ),
         )
@@ -81,3 +81,27 @@ def test_the_keyframe_check_equals_the_brute_force_one(cid: str) -> None:
         assert check.self_depth == pytest.approx(max(0.0, *depths), abs=1e-9)
         near = set(broad.near(gdata, 0.0))
         assert all(k in near for k, d in enumerate(depths) if d >= 0.0)
+
+
+@pytest.mark.parametrize("cid", ["talos", "hyq"])
+def test_a_shape_inside_is_as_deep_as_its_deepest_contact(cid: str) -> None:
+    """Outside the scene ``deepest`` is the signed distance; inside, the deepest of coal's
+    per-triangle contacts, never shallower than the nearest triangle says (a walk sinking
+    into the floor mesh)."""
+    character = get_character(cid)
+    model, geometry = character.model, character.motion_geometry
+    data, gdata = model.createData(), pin.GeometryData(geometry)
+    distances = SceneDistances(scene("flat").collision.bvh)
+    inside = 0
+    for q in _walk(character, 60, 3):
+        pin.forwardKinematics(model, data, q)
+        pin.updateGeometryPlacements(model, data, geometry, gdata)
+        for i, obj in enumerate(geometry.geometryObjects):
+            nearest = distances.nearest(obj.geometry, gdata.oMg[i])
+            deepest = distances.deepest(obj.geometry, gdata.oMg[i])
+            if nearest >= 0.0:
+                assert deepest == nearest
+            else:
+                inside += 1
+                assert deepest <= nearest
+    assert inside > 0

@@ -6,6 +6,7 @@ from __future__ import annotations
 from functools import cache
 
 import numpy as np
+import pytest
 
 from planner.contact.checks import hold_error, make_contact, within_limits
 from planner.contact.context import ContactContext, make_context
@@ -19,8 +20,18 @@ from planner.kinematics import (
     solve_ik,
 )
 from planner.motion.builder import keyframe_grid
-from planner.motion.sequence import sequence_motion
+from planner.motion.sequence import (
+    Timing,
+    _rest_point,
+    _rest_window,
+    contact_phase,
+    dynamic_com,
+    sequence_motion,
+    swing_durations,
+    timed_com,
+)
 from tests.planner.contact.contact_helpers import character_and_data, scene
+from trajectory import is_static_equilibrium
 
 
 @cache
@@ -89,3 +100,48 @@ def test_keyframe_grid_is_even_and_ends_on_time() -> None:
         if len(grid) > 2:
             gaps = np.diff(grid)
             assert gaps.min() >= 0.5 / 30.0 and gaps.max() <= 1.5 / 30.0
+
+
+def test_a_window_that_stops_joins_the_dynamic_curve_at_rest() -> None:
+    """Where slowing cannot help, a window of phases stops between phases (a rest-to-rest
+    quintic each, at the COM of the state with fewer contacts) and the dynamic phases on each
+    side are found again to end and start at rest there: the curve stays C2 at every phase
+    boundary, the window's phases go from stop to stop and last at least their swing time, and
+    the phases before the first one found again are the earlier curve's."""
+    ctx, states = _hexapod_steps()
+    character, data = ctx.character, ctx.data
+    n = len(states)
+    model = character.model
+    reference, _ = timed_com(character, data, states, Timing(), swing_durations(character, states))
+    earlier, factors = dynamic_com(character, data, states, reference)
+    assert earlier is not None
+    lo, hi = 2, 4
+    stopped = _rest_window(character, data, states, reference, earlier, factors, (lo, hi))
+    assert stopped is not None
+    spliced, used, first = stopped
+    assert first == lo - 1
+    assert all(u >= f for u, f in zip(used, factors, strict=True))
+    assert used[: lo - 1] == factors[: lo - 1] and used[hi + 1 :] == factors[hi + 1 :]
+    segments = spliced.curve.segments
+    times = spliced.phase_times
+    assert len(segments) == n and len(times) == n + 1
+    for seg, t0, t1 in zip(segments, times[:-1], times[1:], strict=True):
+        assert seg.t0 == pytest.approx(t0) and seg.t1 == pytest.approx(t1)
+    velocity, acceleration = spliced.curve.derivative(1), spliced.curve.derivative(2)
+    for t in times[1:-1]:
+        for curve in (spliced.curve, velocity, acceleration):
+            np.testing.assert_allclose(curve(t - 1e-9), curve(t + 1e-9), atol=1e-5)
+    minimum = swing_durations(character, states)
+    for j in range(lo, hi):
+        start, end = segments[j].control_points[0], segments[j].control_points[-1]
+        assert np.linalg.norm(velocity(times[j] + 1e-9)) < 1e-6
+        assert np.linalg.norm(velocity(times[j + 1] - 1e-9)) < 1e-6
+        np.testing.assert_allclose(end, _rest_point(model, states, j), atol=1e-9)
+        np.testing.assert_allclose(start, _rest_point(model, states, j - 1), atol=1e-9)
+        for k in (j, j + 1):  # the stop stands in both phases around it
+            assert is_static_equilibrium(contact_phase(character, states[k]), end)
+        assert times[j + 1] - times[j] >= minimum[j] - 1e-9
+    for j in range(first):  # before the first phase found again: the earlier curve
+        np.testing.assert_allclose(
+            segments[j].control_points, earlier.curve.segments[j].control_points, atol=1e-12
+        )

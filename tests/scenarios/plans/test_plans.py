@@ -120,9 +120,6 @@ def planned(request: pytest.FixtureRequest) -> tuple[str, PlanResult[ContactPlan
 MOTION_SHORTFALL = frozenset(
     {
         "hpp_darpa_hyq",  # solves at its seed; the next one: a stance foot slips 6 mm
-        # feet planned 14.5 cm apart under bent knees: the knees' mesh hulls touch, and the
-        # stance feet slip 7 mm (the planner places contacts with the capsules)
-        "hpp_stair_bauzil_talos",
         "rubble_quadruped",  # a shin into a block, 24 keyframes; a stance foot slips 5 mm
     }
 )
