@@ -394,7 +394,11 @@ def run_jumps(request_json: str, seed: int, deadline: float | None = None) -> di
         keyframes=[convert.keyframe_out(character, k) for k in (plan.keyframes if plan else ())],
         phases=[convert.phase_out(p) for p in (plan.phases if plan else ())],
         com=[convert.com_segment_out(s) for s in (plan.com if plan else ())],
-        report=plan.report.as_dict() if plan and plan.report else {},
+        report=(
+            {**plan.report.as_dict(), "nodes_refused": int(result.stats.get("nodes_refused", 0))}
+            if plan and plan.report
+            else {}
+        ),
         timings=dict(plan.timings) if plan else {},
     )
     return response.model_dump(mode="json")

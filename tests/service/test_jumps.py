@@ -86,6 +86,7 @@ async def test_roadmap_build_persist_and_jump(
     assert len(times) > 5 and steps.min() > 0 and steps.max() - steps.min() < 1e-6
     assert body["phases"] and body["com"]
     assert body["report"]["phases_animated"] == len(body["phases"])
+    assert isinstance(body["report"]["nodes_refused"], int) and body["report"]["nodes_refused"] >= 0
     flying = [
         k
         for k in body["keyframes"]
