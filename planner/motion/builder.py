@@ -323,19 +323,23 @@ def _swing_at_fault(segment: _Segment, shapes: frozenset[str]) -> bool:
     return missed or any(c.colliding and c.shape in shapes for c in segment.checks)
 
 
-def _unclean(segment: _Segment, before: Keyframe | None) -> str | None:
+def _unclean(segment: _Segment, before: Keyframe | None, lag_matters: bool = True) -> str | None:
     """Why ``segment`` cannot be played as is, None when it can: a keyframe collides, a
-    stance contact slips beyond ``HOLD_TOLERANCE``, the COM lags its curve by more than
-    ``TRIAL_COM_TOLERANCE`` in more than ``TRIAL_COM_LAG_SHARE`` of the keyframes or by
-    more than ``TRIAL_COM_MAX_LAG`` in one, or the root moves faster than
-    ``MAX_ROOT_SPEED`` between two keyframes (from ``before``, the keyframe preceding the
-    segment, if any)."""
+    stance contact slips beyond ``HOLD_TOLERANCE``, the COM lags its curve (if
+    ``lag_matters``) by more than ``TRIAL_COM_TOLERANCE`` in more than
+    ``TRIAL_COM_LAG_SHARE`` of the keyframes or by more than ``TRIAL_COM_MAX_LAG`` in one,
+    or the root moves faster than ``MAX_ROOT_SPEED`` between two keyframes (from
+    ``before``, the keyframe preceding the segment, if any)."""
     if not all(c.valid for c in segment.checks):
         return "a keyframe collides or a contact slips"
     lags = np.asarray(segment.com_errors, dtype=np.float64)
-    if lags.size and (
-        float(lags.max()) > tuning.TRIAL_COM_MAX_LAG
-        or float(np.mean(lags > tuning.TRIAL_COM_TOLERANCE)) > tuning.TRIAL_COM_LAG_SHARE
+    if (
+        lag_matters
+        and lags.size
+        and (
+            float(lags.max()) > tuning.TRIAL_COM_MAX_LAG
+            or float(np.mean(lags > tuning.TRIAL_COM_TOLERANCE)) > tuning.TRIAL_COM_LAG_SHARE
+        )
     ):
         return f"the COM lags its curve by up to {float(lags.max()) * 1000:.0f} mm"
     keys = ([before] if before is not None else []) + segment.keyframes
@@ -564,7 +568,8 @@ def build_motion(
         previous = times[-1]
         if best.cut_short:
             break
-        if abandon_unclean and (unclean := _unclean(best, last_key)) is not None:
+        lag_matters = not spec.phases[k].quasi_static
+        if abandon_unclean and (unclean := _unclean(best, last_key, lag_matters)) is not None:
             abandoned, abandoned_because = k, unclean
             break
     keyframes = [key for s in segments for key in s.keyframes]

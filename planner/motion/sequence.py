@@ -356,22 +356,26 @@ def _rest_window(
 ) -> tuple[trajectory.DynamicCom, list[float], int] | None:
     """``earlier``'s curve with the phases of ``window`` [lo, hi) stopping between phases
     instead (a rest-to-rest quintic per phase from :func:`_rest_point` to the next, as
-    2PAC's own fallback, each lasting at least :func:`swing_durations`), and the dynamic
-    phases on each side of the window found again, at rest at the window's ends and joined
-    C2 to the rest: the phase next to the window, else ``REST_SIDE_BEFORE`` phases before it
-    or every phase after it up to the next ``resting`` one, each slowed through ``levels``
-    until its QP passes Eq. 1 (a side already ``resting`` stops at the window's end too and
-    is kept). The phases after the window are shifted in time. Returns the curve, the
-    factors used and the first phase whose curve changed, or None when a side has no curve
-    at any level. ``DynamicCom.valid`` then says only that the dynamic phases pass; the
-    window's are quasi-static."""
+    2PAC's own fallback, each lasting at least :func:`swing_durations` and as long as in
+    2PAC's ``reference``), and the dynamic phases on each side of the window found again,
+    at rest at the window's ends and joined C2 to the rest: the phase next to the window,
+    else ``REST_SIDE_BEFORE`` phases before it or every phase after it up to the next
+    ``resting`` one, each slowed through ``levels`` until its QP passes Eq. 1 (a side
+    already ``resting`` stops at the window's end too and is kept). The phases after the
+    window are shifted in time. Returns the curve, the factors used and the first phase
+    whose curve changed, or None when a side has no curve at any level.
+    ``DynamicCom.valid`` then says only that the dynamic phases pass; the window's are
+    quasi-static."""
     lo, hi = window
     n = len(states)
     model = character.model
     points = [_rest_point(model, states, j) for j in range(lo - 1, hi)]
     rest, rest_times = rest_to_rest(
         np.stack(points),
-        min_durations=swing_durations(character, states, speed)[lo:hi],
+        min_durations=np.maximum(
+            swing_durations(character, states, speed)[lo:hi],
+            np.diff(reference.phase_times)[lo:hi],
+        ).tolist(),
         max_acceleration=tuning.FALLBACK_MAX_ACCELERATION,
     )
     degree = earlier.curve.segments[0].degree
@@ -467,9 +471,12 @@ def timed_com(
 
 def _com_method(methods: Sequence[str]) -> str:
     """The plan's COM method from its phases': "2pac+dynamic" (2PAC's transition points
-    and curve refined under Eq. 1), "2pac", or "2pac+rest_to_rest" when a window fell back."""
+    and curve refined under Eq. 1), "2pac+dynamic+rest_to_rest" when windows of that curve
+    stop between phases, "2pac", or "2pac+rest_to_rest" when a window of 2PAC's fell back."""
     if all(m == "2pac+dynamic" for m in methods):
         return "2pac+dynamic"
+    if "2pac+dynamic" in methods:
+        return "2pac+dynamic+rest_to_rest"
     return "2pac" if all(m == "2pac" for m in methods) else "2pac+rest_to_rest"
 
 
@@ -534,7 +541,8 @@ def sequence_motion(
                     state.contacts,
                     posture,
                     swing,
-                    rigid_stance=trial and k not in resting,
+                    rigid_stance=trial,
+                    quasi_static=k in resting,
                 )
             )
         spec = MotionSpec(np.asarray(states[0].q), tuple(spec_phases), curve, rate)
@@ -590,7 +598,7 @@ def sequence_motion(
         )
         trials.append(dynamic_refused)
         if bad in resting:
-            trials.append(f"phase {bad} fails even stopping at its transition points")
+            trials.append(f"phase {bad} fails even stopping at rest")
             break
         # the window around the failing phase, short of the phases already stopping
         floor = max((j + 1 for j in resting if j < bad), default=0)
@@ -630,7 +638,7 @@ def sequence_motion(
         if stopped is None:
             trials.append(f"{why}; no dynamic curve joins a stop at phases {lo} to {near - 1}")
             break
-        trials.append(f"{why}: phases {lo} to {near - 1} stop at their transition points")
+        trials.append(f"{why}: phases {lo} to {near - 1} stop at rest between phases")
         resting.update(range(lo, near))
         dynamic, factors_tried, first = stopped
         keep = (candidate, first)

@@ -165,7 +165,7 @@ def test_viewer_draws_the_current_phases_equilibrium_region(
         turns = edges[:, 0] * np.roll(edges[:, 1], -1) - edges[:, 1] * np.roll(edges[:, 0], -1)
         assert np.all(turns >= -1e-9) or np.all(turns <= 1e-9), (index, loop)  # convex
         com = _com_at(plan["com"], middle)
-        if plan["report"]["com_method"] != "2pac+dynamic":
+        if plan["report"]["phase_methods"][index] != "2pac+dynamic":
             assert _inside(loop, com), (index, loop, com)
     assert drawn >= len(plan["phases"]) // 2
     assert _console_errors(browser) == []

@@ -230,13 +230,13 @@ def test_keyframes_pass_the_independent_audit(planned) -> None:  # type: ignore[
 def test_a_dynamic_com_slows_only_from_where_the_body_could_not_follow(planned) -> None:  # type: ignore[no-untyped-def]
     """A plan on a dynamic COM gives each phase its factor on the brisk durations, one of
     ``DYNAMIC_SLOWDOWNS`` (a trial the body could not follow is kept but for a window around
-    the failing phase, which is slowed); where the factors differ the report says which
-    phase failed and why. The keyframes stay evenly spaced across the joins (0.5 to 1.5
-    periods) and the COM curve is C2 there."""
+    the failing phase, which is slowed, or stops between phases where slowing cannot help);
+    where the factors differ the report says which phase failed and why. The keyframes
+    stay evenly spaced across the joins (0.5 to 1.5 periods) and the COM curve is C2 there."""
     _, result, *_ = planned
     motion = result.value.motion
     report = motion.report
-    if report["com_method"] != "2pac+dynamic":
+    if report["com_method"] not in ("2pac+dynamic", "2pac+dynamic+rest_to_rest"):
         assert report["dynamic_slowdowns"] is None and report["dynamic_refused"]
         return
     factors = report["dynamic_slowdowns"]
@@ -245,6 +245,11 @@ def test_a_dynamic_com_slows_only_from_where_the_body_could_not_follow(planned) 
     assert report["dynamic_slowdown"] == max(factors)
     if len(set(factors)) > 1:
         assert str(report["dynamic_trials"][0]).startswith("phase ")
+    methods = report["phase_methods"]
+    assert set(methods) <= {"2pac+dynamic", "rest_to_rest"}
+    if "rest_to_rest" in methods:  # a window stopping between phases, and why
+        assert report["com_method"] == "2pac+dynamic+rest_to_rest"
+        assert any("stop at rest between phases" in str(t) for t in report["dynamic_trials"])
     gaps = np.diff([k.t for k in motion.keyframes])
     assert gaps.min() >= 0.5 / 30.0 - 1e-9 and gaps.max() <= 1.5 / 30.0 + 1e-9
     for a, b in itertools.pairwise(motion.com):
