@@ -33,7 +33,7 @@ from typing import Any, TypeVar, cast
 from service.errors import ApiError
 from service.metrics import Metrics
 from service.settings import RETRY_AFTER_S, UPLOAD_CONCURRENCY, Settings
-from service.workers import serve_tasks
+from service.workers import compute_niceness, lower_priority, serve_tasks
 
 T = TypeVar("T")
 log = logging.getLogger("gecko.lanes")
@@ -167,6 +167,7 @@ class Lane(Gate):
         for variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
             os.environ.setdefault(variable, "1")
         self._settings_json = settings.model_dump_json()
+        self.niceness = compute_niceness(settings.worker_nice)  # of each process of the lane
         self._context = multiprocessing.get_context("spawn")
         self._idle: list[_Worker] = []
         self._busy: set[_Worker] = set()
@@ -185,11 +186,13 @@ class Lane(Gate):
         ours, theirs = self._context.Pipe(duplex=True)
         process = self._context.Process(
             target=serve_tasks,
-            args=(theirs, self._settings_json, os.getpid()),
+            args=(theirs, self._settings_json, os.getpid(), self.niceness),
             name=f"gecko-{self.name}",
             daemon=True,
         )
         process.start()
+        if process.pid is not None:  # niced now, before its interpreter has imported much
+            lower_priority(process.pid, self.niceness)
         theirs.close()  # only the child holds it now: its death reads as EOF on ours
         return _Worker(process, ours)
 

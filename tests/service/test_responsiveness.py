@@ -1,9 +1,12 @@
 """What keeps the service process (its event loop, ``/health``) responsive under load, checked
-without timing anything: no route or dependency hops through FastAPI's thread pool."""
+without timing anything: no route or dependency hops through FastAPI's thread pool, and the
+compute processes run, every thread of them, at the configured lower priority."""
 
 from __future__ import annotations
 
 import inspect
+import os
+import sys
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -16,7 +19,10 @@ from fastapi.dependencies.models import Dependant
 from fastapi.routing import APIRoute
 
 from service.app import create_app
+from service.lanes import Lane
+from service.metrics import Metrics
 from service.settings import Settings
+from service.workers import compute_niceness
 
 pytestmark = pytest.mark.anyio
 
@@ -58,3 +64,40 @@ async def test_health_and_listings_never_use_the_thread_pool(
     for path in ("/health", "/v1/characters", "/v1/characters/humanoid"):
         assert (await client.get(path)).status_code == 200, path
     assert hops == []
+
+
+def _thread_niceness() -> list[int]:
+    """In a compute process: the niceness of each of its threads (Linux)."""
+    tasks = os.listdir("/proc/self/task")
+    return [os.getpriority(os.PRIO_PROCESS, int(tid)) for tid in tasks]
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="per-thread niceness: Linux")
+async def test_compute_processes_run_every_thread_at_the_configured_niceness(
+    settings: Settings,
+) -> None:
+    nice = 3
+    lane = Lane(
+        "interactive",
+        processes=1,
+        queue=0,
+        setting="GECKO_INTERACTIVE_QUEUE",
+        settings=settings.model_copy(update={"worker_nice": nice}),
+        metrics=Metrics(),
+    )
+    try:
+        expected = min(19, os.getpriority(os.PRIO_PROCESS, 0) + nice)
+        assert lane.niceness == expected == compute_niceness(nice)
+        # Niced as soon as it is started, by the lane: its start-up (imports, registry: a
+        # second of CPU) does not compete with the service process. Read at once, while the
+        # child is still importing; the lane set it before _spawn returned, so this is no race.
+        worker = lane._spawn()
+        assert worker.process.pid is not None
+        assert os.getpriority(os.PRIO_PROCESS, worker.process.pid) == expected
+        lane._idle.append(worker)
+        # Every thread of the process runs niced, and the service process itself does not.
+        niceness = await lane.run(_thread_niceness)
+        assert niceness and set(niceness) == {expected}
+        assert os.getpriority(os.PRIO_PROCESS, 0) == expected - nice or expected == 19
+    finally:
+        lane.shutdown()
