@@ -18,12 +18,13 @@ plans) and uploads (mesh parsing, surfaces and BVH builds, one at a time).
 from __future__ import annotations
 
 import asyncio
+import inspect
 import logging
 import multiprocessing
 import os
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
@@ -245,23 +246,26 @@ class Lane(Gate):
         start_by: float | None = None,
         finish_by: float | None = None,
         run_for_s: float | None = None,
-        on_start: Callable[[], None] | None = None,
+        on_start: Callable[[], Awaitable[None] | None] | None = None,
     ) -> T:
         """``function(*args)`` in a worker process of this lane.
 
         ``ticket`` is the place :meth:`admit` gave (taken now when None: a 503 when full);
         ``start_by`` (monotonic s) the latest start (a 503 past it); ``finish_by`` (monotonic
         s) or ``run_for_s`` (s from the start) the latest answer (a 504 past it, the process
-        killed). ``on_start`` is called when a process takes the task. Cancelling the
-        calling task kills the process running it. A process that dies under the task is a
-        503 ``worker_lost``; exceptions the function raises are raised here.
+        killed). ``on_start`` is called (and awaited, when it is a coroutine function) when a
+        process takes the task. Cancelling the calling task kills the process running it. A
+        process that dies under the task is a 503 ``worker_lost``; exceptions the function
+        raises are raised here.
         """
         ticket = ticket or self.admit()
         try:
             await self.take_slot(start_by)
             try:
                 if on_start is not None:
-                    on_start()
+                    started = on_start()
+                    if inspect.isawaitable(started):  # a store write, say: off the loop
+                        await started
                 if run_for_s is not None:
                     finish_by = time.monotonic() + run_for_s
                 return await self._call(function, args, finish_by)

@@ -1,12 +1,15 @@
 """What keeps the service process (its event loop, ``/health``) responsive under load, checked
-without timing anything: no route or dependency hops through FastAPI's thread pool, and the
-compute processes run, every thread of them, at the configured lower priority."""
+without timing anything: no route or dependency hops through FastAPI's thread pool, the
+compute processes run, every thread of them, at the configured lower priority, and what may
+wait for a lock or take tens of ms (job store writes) runs off the event loop's thread."""
 
 from __future__ import annotations
 
+import asyncio
 import inspect
 import os
 import sys
+import threading
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -19,12 +22,21 @@ from fastapi.dependencies.models import Dependant
 from fastapi.routing import APIRoute
 
 from service.app import create_app
+from service.jobs import SqliteJobStore
 from service.lanes import Lane
 from service.metrics import Metrics
 from service.settings import Settings
 from service.workers import compute_niceness
 
 pytestmark = pytest.mark.anyio
+PLAN = {
+    "character": "humanoid",
+    "scene": "flat",
+    "start": {"stand_at": [0.0, 0.0, 0.0]},
+    "goal": {"stand_at": [0.5, 0.0, 0.0]},
+    "seed": 1,
+    "time_budget_s": 10,
+}
 
 
 def _calls(dependant: Dependant) -> Iterator[Callable[..., Any]]:
@@ -101,3 +113,29 @@ async def test_compute_processes_run_every_thread_at_the_configured_niceness(
         assert os.getpriority(os.PRIO_PROCESS, 0) == expected - nice or expected == 19
     finally:
         lane.shutdown()
+
+
+async def test_a_job_is_marked_running_off_the_event_loop_thread(
+    client: httpx.AsyncClient, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Marking a job running is a SQLite write that may wait (up to the store's busy
+    timeout) for another process's write lock: never on the event loop's thread."""
+    loop_thread = threading.get_ident()
+    threads: list[int] = []
+    start = SqliteJobStore.start
+
+    def recording_start(store: SqliteJobStore, job_id: str) -> bool:
+        threads.append(threading.get_ident())
+        return start(store, job_id)
+
+    monkeypatch.setattr(SqliteJobStore, "start", recording_start)
+    posted = await client.post("/v1/plans", json={**PLAN, "async": True})
+    assert posted.status_code == 202, posted.text
+    location = posted.headers["location"]
+    for _ in range(600):
+        job = (await client.get(location)).json()
+        if job["status"] not in ("queued", "running"):
+            break
+        await asyncio.sleep(0.1)
+    assert job["status"] == "done", job
+    assert threads and loop_thread not in threads
