@@ -1,7 +1,8 @@
 """What keeps the service process (its event loop, ``/health``) responsive under load, checked
 without timing anything: no route or dependency hops through FastAPI's thread pool, the
 compute processes run, every thread of them, at the configured lower priority, and what may
-wait for a lock or take tens of ms (job store writes) runs off the event loop's thread."""
+wait for a lock or take tens of ms (job store writes, metrics scrapes) runs off the event
+loop's thread."""
 
 from __future__ import annotations
 
@@ -138,4 +139,21 @@ async def test_a_job_is_marked_running_off_the_event_loop_thread(
             break
         await asyncio.sleep(0.1)
     assert job["status"] == "done", job
+    assert threads and loop_thread not in threads
+
+
+async def test_a_metrics_scrape_is_collected_off_the_event_loop_thread(
+    client: httpx.AsyncClient, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    loop_thread = threading.get_ident()
+    threads: list[int] = []
+    exposition = Metrics.exposition
+
+    def recording_exposition(metrics: Metrics) -> bytes:
+        threads.append(threading.get_ident())
+        return exposition(metrics)
+
+    monkeypatch.setattr(Metrics, "exposition", recording_exposition)
+    scraped = await client.get("/metrics")
+    assert scraped.status_code == 200 and b"gecko_http_requests_total" in scraped.content
     assert threads and loop_thread not in threads
