@@ -1,8 +1,8 @@
 """What keeps the service process (its event loop, ``/health``) responsive under load, checked
 without timing anything: no route or dependency hops through FastAPI's thread pool, the
 compute processes run, every thread of them, at the configured lower priority, and what may
-wait for a lock or take tens of ms (job store writes, metrics scrapes) runs off the event
-loop's thread."""
+wait for a lock or take tens of ms (job store writes, metrics scrapes, stored answers
+validated and serialised) runs off the event loop's thread."""
 
 from __future__ import annotations
 
@@ -21,11 +21,13 @@ import pytest
 from fastapi import FastAPI
 from fastapi.dependencies.models import Dependant
 from fastapi.routing import APIRoute
+from pydantic import TypeAdapter
 
 from service.app import create_app
 from service.jobs import SqliteJobStore
 from service.lanes import Lane
 from service.metrics import Metrics
+from service.schemas import TwisterStepResponse
 from service.settings import Settings
 from service.workers import compute_niceness
 
@@ -37,6 +39,13 @@ PLAN = {
     "goal": {"stand_at": [0.5, 0.0, 0.0]},
     "seed": 1,
     "time_budget_s": 10,
+}
+STEP = {
+    "character": "quadruped",
+    "scene": "twister",
+    "stand_at": [0.0, 0.0, 0.0],
+    "action": {"kind": "break", "limb": "lf_foot"},
+    "seed": 3,
 }
 
 
@@ -157,3 +166,28 @@ async def test_a_metrics_scrape_is_collected_off_the_event_loop_thread(
     scraped = await client.get("/metrics")
     assert scraped.status_code == 200 and b"gecko_http_requests_total" in scraped.content
     assert threads and loop_thread not in threads
+
+
+async def test_a_stored_answer_is_validated_and_serialised_off_the_event_loop_thread(
+    client: httpx.AsyncClient, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A stored plan of a few MB takes tens of ms to validate and serialise: in a thread.
+    The body is what FastAPI's ``response_model`` serialisation gave (by alias)."""
+    posted = await client.post("/v1/twister/step", json=STEP)
+    assert posted.status_code == 200, posted.text
+    step_id = posted.json()["id"]
+    loop_thread = threading.get_ident()
+    threads: list[int] = []
+    validate = TwisterStepResponse.model_validate
+
+    def recording_validate(cls: type[TwisterStepResponse], obj: Any) -> TwisterStepResponse:
+        threads.append(threading.get_ident())
+        return validate(obj)
+
+    monkeypatch.setattr(TwisterStepResponse, "model_validate", classmethod(recording_validate))
+    stored = await client.get(f"/v1/twister/steps/{step_id}")
+    assert stored.status_code == 200, stored.text
+    assert stored.headers["content-type"] == "application/json"
+    assert threads and loop_thread not in threads
+    expected = TypeAdapter(TwisterStepResponse).dump_json(validate(posted.json()), by_alias=True)
+    assert stored.content == expected
