@@ -27,6 +27,8 @@ from service.app import create_app
 from service.jobs import SqliteJobStore
 from service.lanes import Lane
 from service.metrics import Metrics
+from service.registry import Registry
+from service.routes import scenes as scenes_route
 from service.schemas import TwisterStepResponse
 from service.settings import Settings
 from service.workers import compute_niceness
@@ -191,3 +193,23 @@ async def test_a_stored_answer_is_validated_and_serialised_off_the_event_loop_th
     assert threads and loop_thread not in threads
     expected = TypeAdapter(TwisterStepResponse).dump_json(validate(posted.json()), by_alias=True)
     assert stored.content == expected
+
+
+async def test_the_scene_listing_takes_two_trips_to_a_thread(
+    client: httpx.AsyncClient, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Each trip to a thread waits for a free one and for the GIL (ms under load): the
+    listing takes one for the built-in scenes and one for the uploaded ones, whatever their
+    number."""
+    trips: list[str] = []
+    run_sync = scenes_route.to_thread.run_sync
+
+    async def counting(function: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+        trips.append(getattr(function, "__qualname__", repr(function)))
+        return await run_sync(function, *args, **kwargs)
+
+    monkeypatch.setattr(scenes_route.to_thread, "run_sync", counting)
+    listed = await client.get("/v1/scenes")
+    assert listed.status_code == 200
+    assert len(listed.json()) == len(Registry.builtin_scene_ids()) > 1
+    assert len(trips) == 2, trips
