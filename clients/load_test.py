@@ -8,28 +8,29 @@ Usage::
 
 Each concurrency level runs for ``--duration`` seconds (or ``--requests`` requests, whichever
 comes first) with that many simulated users. A user draws the kind of each request from
-``--mix``: ``step`` plays a Twister game (each step passes the previous answer's state back,
-a new game after ``--game-length`` steps or a refused move), ``plan`` asks a short walk,
-``jump`` plans jumps over the ``gaps`` scene on a roadmap built once before the ramp,
-``upload`` uploads a small terrain mesh (an STL of its own each time) and deletes it again,
-``list`` reads a listing (health, characters, scenes, stored results). Meanwhile a probe of
-its own asks ``/health`` every ``HEALTH_INTERVAL_S``. The summary gives, per level and kind,
-the count, throughput (answers per second), p50 and p99 latency (ms, of the answers with
-status < 400) and the errors by HTTP status or by failure (``timeout``, ``connection``,
-``exception``), with one message of each (a user refused with ``Retry-After`` waits that
-long before its next request, as a client should); then /health's p50 and p99 and the server's
+``--mix``: ``step`` plays a Twister game (each step passes the previous answer's state back, a
+new game after ``--game-length`` steps or a refused move), ``plan`` asks a short walk, ``jump``
+plans jumps over the ``gaps`` scene on a roadmap built once before the ramp, ``upload`` uploads
+a small terrain mesh (an STL of its own each time) and deletes it again, ``list`` reads a
+listing (health, characters, scenes, stored results). Meanwhile a probe in a process of its own
+asks ``/health`` every ``HEALTH_INTERVAL_S`` (so that its latencies are the server's, not also
+the time this client's event loop spends on the users' answers). The summary gives, per level
+and kind, the count, throughput (answers per second), p50 and p99 latency (ms, of the answers
+with status < 400) and the errors by HTTP status or by failure (``timeout``, ``connection``,
+``exception``), with one message of each (a user refused with ``Retry-After`` waits that long
+before its next request, as a client should); then /health's p50 and p99 and the server's
 resident memory (its ``gecko_resident_memory_bytes`` metric: the service process and its
-compute processes) before and after the level. Every failure says what happened: its type
-and its text.
+compute processes) before and after the level. Every failure says what happened: its type and
+its text.
 """
 
 from __future__ import annotations
 
 import argparse
 import asyncio
-import contextlib
 import json
 import math
+import multiprocessing
 import random
 import re
 import struct
@@ -37,6 +38,8 @@ import sys
 import time
 from collections.abc import Awaitable, Callable, Sequence
 from dataclasses import dataclass, field
+from multiprocessing.connection import Connection
+from multiprocessing.process import BaseProcess
 from typing import Any
 
 import httpx
@@ -50,6 +53,7 @@ DEFAULT_LEVELS = "1,4,16,64"
 LIST_PATHS = ("/health", "/v1/characters", "/v1/scenes", "/v1/results?limit=20")
 ROADMAP_POLL_S = 0.5
 HEALTH_INTERVAL_S = 0.1  # the /health probe's period during each level
+PROBE_START_S = 60.0  # s the /health probe's process may take to start or to stop
 UPLOAD_GRID = 12  # an upload is a 12 x 12 height field: 242 triangles
 MEMORY_METRIC = "gecko_resident_memory_bytes"
 MAX_RETRY_AFTER_S = 10.0  # the longest a refused user waits before its next request
@@ -220,6 +224,90 @@ class User:
     steps: int = 0
 
 
+def _probe_health(url: str, timeout_s: float, connection: Connection) -> None:
+    """In a process of its own: ask ``url``/health every HEALTH_INTERVAL_S on one connection
+    until anything arrives on ``connection``, then send back the KindStats."""
+    stats = KindStats()
+    with httpx.Client(base_url=url, timeout=timeout_s) as probe:
+        connection.send("ready")
+        while True:
+            sent = time.perf_counter()
+            try:
+                response = probe.get("/health")
+            except httpx.HTTPError as exc:
+                key = "timeout" if isinstance(exc, httpx.TimeoutException) else "connection"
+                stats.fail(key, describe(exc, timeout_s))
+            else:
+                if response.status_code < 400:
+                    stats.latencies.append(time.perf_counter() - sent)
+                else:
+                    stats.fail(str(response.status_code), _error_message(response))
+            if connection.poll(HEALTH_INTERVAL_S):
+                break
+    connection.send(stats)
+
+
+class HealthProbe:
+    """/health asked every HEALTH_INTERVAL_S from a process of its own, so that its
+    latencies are the server's: in the load test's own event loop they would also count the
+    time that loop spends on the simulated users' answers (tens of ms at 64 users)."""
+
+    def __init__(self, url: str, timeout_s: float) -> None:
+        self.url = url
+        self.timeout_s = timeout_s
+        self._process: BaseProcess | None = None
+        self._connection: Connection | None = None
+
+    def start(self) -> None:
+        """Start the probe's process; returns once it asks (blocking: call it off the loop)."""
+        context = multiprocessing.get_context("spawn")
+        ours, theirs = context.Pipe()
+        process = context.Process(
+            target=_probe_health, args=(self.url, self.timeout_s, theirs), daemon=True
+        )
+        process.start()
+        theirs.close()
+        self._process, self._connection = process, ours
+        try:
+            if not ours.poll(PROBE_START_S) or ours.recv() != "ready":
+                raise LoadTestError(f"the /health probe did not start within {PROBE_START_S:g} s")
+        except (EOFError, OSError) as exc:
+            self._close()
+            raise LoadTestError(f"the /health probe could not start: {describe(exc)}") from exc
+        except LoadTestError:
+            self._close()
+            raise
+
+    def stop(self) -> KindStats:
+        """Stop the probe; its statistics (a probe that died is one ``exception``)."""
+        connection = self._connection
+        if connection is None:
+            raise LoadTestError("the /health probe was not started")
+        try:
+            connection.send("stop")
+            if not connection.poll(self.timeout_s + PROBE_START_S):
+                raise TimeoutError(f"no answer within {self.timeout_s + PROBE_START_S:g} s")
+            stats = connection.recv()
+            if not isinstance(stats, KindStats):
+                raise TypeError(f"the probe sent a {type(stats).__name__}")
+        except (EOFError, OSError, TimeoutError, TypeError) as exc:
+            stats = KindStats()
+            stats.fail("exception", f"the /health probe failed: {describe(exc)}")
+        finally:
+            self._close()
+        return stats
+
+    def _close(self) -> None:
+        if self._connection is not None:
+            self._connection.close()
+        if self._process is not None:
+            self._process.join(PROBE_START_S)
+            if self._process.is_alive():
+                self._process.kill()
+                self._process.join()
+        self._process = self._connection = None
+
+
 class LoadTest:
     """Runs the ramp against ``http`` (an ``httpx.AsyncClient`` with the server's base URL)."""
 
@@ -244,24 +332,11 @@ class LoadTest:
             return {}
         return parse_memory(response.text) if response.status_code == 200 else {}
 
-    async def _probe_health(self, stats: KindStats, stop: asyncio.Event) -> None:
-        """Ask /health every HEALTH_INTERVAL_S on a connection of its own until ``stop``."""
-        timeout = self.settings.timeout_s
-        async with httpx.AsyncClient(base_url=str(self.http.base_url), timeout=timeout) as probe:
-            while not stop.is_set():
-                sent = time.perf_counter()
-                try:
-                    response = await probe.get("/health")
-                except httpx.HTTPError as exc:
-                    key = "timeout" if isinstance(exc, httpx.TimeoutException) else "connection"
-                    stats.fail(key, describe(exc, timeout))
-                else:
-                    if response.status_code < 400:
-                        stats.latencies.append(time.perf_counter() - sent)
-                    else:
-                        stats.fail(str(response.status_code), _error_message(response))
-                with contextlib.suppress(TimeoutError):
-                    await asyncio.wait_for(stop.wait(), HEALTH_INTERVAL_S)
+    async def _start_probe(self) -> HealthProbe:
+        """The /health probe, started in a process of its own and asking already."""
+        probe = HealthProbe(str(self.http.base_url), self.settings.timeout_s)
+        await asyncio.to_thread(probe.start)
+        return probe
 
     async def prepare(self, setup_timeout_s: float = 300.0) -> None:
         """Check the server answers, and build the jump roadmap when jumps are in the mix."""
@@ -352,10 +427,8 @@ class LoadTest:
         kinds = [kind for kind, weight in self.settings.mix.items() if weight > 0]
         weights = [self.settings.mix[kind] for kind in kinds]
         stats = {kind: KindStats() for kind in kinds}
-        health = KindStats()
         memory_before = await self.memory()
-        stop_probe = asyncio.Event()
-        probe = asyncio.create_task(self._probe_health(health, stop_probe))
+        probe = await self._start_probe()
         started = time.monotonic()
         deadline = started + duration_s
         budget = iter(range(max_requests))
@@ -391,8 +464,7 @@ class LoadTest:
             await asyncio.gather(*(user_loop(i) for i in range(concurrency)))
         finally:
             seconds = time.monotonic() - started
-            stop_probe.set()
-            await probe
+            health = await asyncio.to_thread(probe.stop)
         return {
             "concurrency": concurrency,
             "seconds": round(seconds, 3),

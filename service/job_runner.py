@@ -33,10 +33,12 @@ class JobContext:
         self.ticket = ticket
         self._runner = runner
 
-    def on_start(self) -> None:
+    async def on_start(self) -> None:
         """Mark the job running as a process takes it (raises :class:`JobGone` if it was
-        cancelled while it waited)."""
-        if not self._runner.store.start(self.job_id):
+        cancelled while it waited). The store write runs in a thread: it may wait for the
+        write lock (up to ``BUSY_TIMEOUT_S``) held by another process, a niced roadmap
+        build writing its progress, say, and the event loop must not wait with it."""
+        if not await to_thread.run_sync(self._runner.store.start, self.job_id):
             raise JobGone(self.job_id)
 
 

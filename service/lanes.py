@@ -18,12 +18,13 @@ plans) and uploads (mesh parsing, surfaces and BVH builds, one at a time).
 from __future__ import annotations
 
 import asyncio
+import inspect
 import logging
 import multiprocessing
 import os
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
@@ -33,7 +34,7 @@ from typing import Any, TypeVar, cast
 from service.errors import ApiError
 from service.metrics import Metrics
 from service.settings import RETRY_AFTER_S, UPLOAD_CONCURRENCY, Settings
-from service.workers import serve_tasks
+from service.workers import compute_niceness, lower_priority, serve_tasks
 
 T = TypeVar("T")
 log = logging.getLogger("gecko.lanes")
@@ -167,6 +168,7 @@ class Lane(Gate):
         for variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
             os.environ.setdefault(variable, "1")
         self._settings_json = settings.model_dump_json()
+        self.niceness = compute_niceness(settings.worker_nice)  # of each process of the lane
         self._context = multiprocessing.get_context("spawn")
         self._idle: list[_Worker] = []
         self._busy: set[_Worker] = set()
@@ -185,11 +187,13 @@ class Lane(Gate):
         ours, theirs = self._context.Pipe(duplex=True)
         process = self._context.Process(
             target=serve_tasks,
-            args=(theirs, self._settings_json, os.getpid()),
+            args=(theirs, self._settings_json, os.getpid(), self.niceness),
             name=f"gecko-{self.name}",
             daemon=True,
         )
         process.start()
+        if process.pid is not None:  # niced now, before its interpreter has imported much
+            lower_priority(process.pid, self.niceness)
         theirs.close()  # only the child holds it now: its death reads as EOF on ours
         return _Worker(process, ours)
 
@@ -242,23 +246,26 @@ class Lane(Gate):
         start_by: float | None = None,
         finish_by: float | None = None,
         run_for_s: float | None = None,
-        on_start: Callable[[], None] | None = None,
+        on_start: Callable[[], Awaitable[None] | None] | None = None,
     ) -> T:
         """``function(*args)`` in a worker process of this lane.
 
         ``ticket`` is the place :meth:`admit` gave (taken now when None: a 503 when full);
         ``start_by`` (monotonic s) the latest start (a 503 past it); ``finish_by`` (monotonic
         s) or ``run_for_s`` (s from the start) the latest answer (a 504 past it, the process
-        killed). ``on_start`` is called when a process takes the task. Cancelling the
-        calling task kills the process running it. A process that dies under the task is a
-        503 ``worker_lost``; exceptions the function raises are raised here.
+        killed). ``on_start`` is called (and awaited, when it is a coroutine function) when a
+        process takes the task. Cancelling the calling task kills the process running it. A
+        process that dies under the task is a 503 ``worker_lost``; exceptions the function
+        raises are raised here.
         """
         ticket = ticket or self.admit()
         try:
             await self.take_slot(start_by)
             try:
                 if on_start is not None:
-                    on_start()
+                    started = on_start()
+                    if inspect.isawaitable(started):  # a store write, say: off the loop
+                        await started
                 if run_for_s is not None:
                     finish_by = time.monotonic() + run_for_s
                 return await self._call(function, args, finish_by)

@@ -8,7 +8,6 @@ scenes load once per process (from the on-disk caches).
 
 from __future__ import annotations
 
-import contextlib
 import ctypes
 import ctypes.util
 import os
@@ -22,6 +21,7 @@ from service.settings import Settings
 
 _WORKER_REGISTRY: Registry | None = None
 _WORKER_SETTINGS: Settings | None = None
+MAX_NICENESS = 19  # the lowest priority Unix has
 
 
 def _init_worker(settings_json: str) -> None:
@@ -80,24 +80,49 @@ def die_with_parent(parent_pid: int) -> bool:
     return True
 
 
-def lower_priority(nice: int) -> None:
-    """Add ``nice`` to this process's niceness (Unix): the compute processes keep every
-    core busy under load, and the service process, which only answers and waits, must not
-    queue behind them for one (a ``/health`` answers in milliseconds, not a time slice)."""
-    if nice > 0 and hasattr(os, "nice"):
-        with contextlib.suppress(OSError):  # not allowed here: the same priority
-            os.nice(nice)
+def compute_niceness(nice: int) -> int:
+    """The niceness of a compute process: this process's own plus ``nice`` (at most
+    MAX_NICENESS; this process's own where Unix priorities are unknown)."""
+    if not hasattr(os, "getpriority"):
+        return 0
+    own = os.getpriority(os.PRIO_PROCESS, 0)
+    return min(MAX_NICENESS, own + max(0, nice))
 
 
-def serve_tasks(connection: Connection, settings_json: str, parent_pid: int | None = None) -> None:
+def lower_priority(pid: int, niceness: int) -> bool:
+    """Set process ``pid``'s niceness (0: this process) to ``niceness`` when that lowers its
+    priority; never raises it. The compute processes keep every core busy under load, and
+    the service process, which only answers and waits, must not queue behind them for one
+    (a ``/health`` answers in milliseconds, not a time slice). False where not allowed."""
+    if not hasattr(os, "setpriority"):
+        return False
+    try:
+        if os.getpriority(os.PRIO_PROCESS, pid) < niceness:
+            os.setpriority(os.PRIO_PROCESS, pid, niceness)
+    except OSError:  # gone, or not allowed here: the same priority
+        return False
+    return True
+
+
+def serve_tasks(
+    connection: Connection,
+    settings_json: str,
+    parent_pid: int | None = None,
+    niceness: int | None = None,
+) -> None:
     """A planning process's loop: receive ``(function, args)``, send back ``("ok", value)``
     or ``("error", exception)``, until the service closes its end of the pipe (or dies).
 
-    With ``parent_pid`` (the service worker's pid) the process dies with that worker."""
+    With ``parent_pid`` (the service worker's pid) the process dies with that worker. With
+    ``niceness`` (:func:`compute_niceness`) it runs at that niceness before it does anything
+    else: its start-up (imports, characters, scenes) costs a second of CPU, which must not
+    compete with the service process either. The lane that starts it sets it too, at once
+    (:meth:`service.lanes.Lane._spawn`), so that the interpreter's own imports run niced."""
+    if niceness is not None:
+        lower_priority(0, niceness)
     if parent_pid is not None:
         die_with_parent(parent_pid)
     _init_worker(settings_json)
-    lower_priority(worker_settings().worker_nice)
     while True:
         try:
             function, args = connection.recv()

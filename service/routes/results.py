@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import functools
 import secrets
-from typing import Annotated, Any, Literal, TypeVar
+from typing import Annotated, Any, Literal
 
 from anyio import to_thread
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import Response
-from pydantic import BaseModel, ValidationError
+from pydantic import BaseModel, TypeAdapter, ValidationError
 
 from service import compute
 from service.context import annotate
@@ -21,7 +21,6 @@ from service.interactive import run_interactive
 from service.results import Kind, ResultStore, StoredResult, stored_result
 from service.schemas import MAX_SEED, ErrorBody, ResultSummary
 
-Answer = TypeVar("Answer", bound=BaseModel)
 router = APIRouter(prefix="/v1", tags=["results"])
 Format = Literal["json", "glb"]
 KIND_NAMES: dict[Kind, str] = {"plan": "plan", "step": "Twister step", "jump": "jump"}
@@ -144,6 +143,27 @@ def _unreadable(stored: StoredResult) -> ApiError:
     return ApiError(410, "stored_by_other_version", message, "id")
 
 
+def _stored_json(store: ResultStore, rid: str, kind: Kind, model: type[BaseModel]) -> bytes | None:
+    """A stored answer as its route's JSON: read, validated as ``model`` (410 for a shape
+    this code no longer reads) and serialised by alias, as FastAPI serialises a route's
+    ``response_model``; None for an unknown id. Run in a thread: a plan of a few MB takes
+    tens of ms to validate and serialise, which the event loop (and /health) must not wait."""
+    stored = store.get(rid, kind)
+    if stored is None:
+        return None
+    try:
+        answer = model.model_validate(stored.response)
+    except ValidationError as exc:
+        raise _unreadable(stored) from exc
+    return _adapter(model).dump_json(answer, by_alias=True)
+
+
+@functools.cache
+def _adapter(model: type[BaseModel]) -> TypeAdapter[Any]:
+    """The serialiser of ``model`` (one per answer model, built once)."""
+    return TypeAdapter(model)
+
+
 async def stored_answer(
     request: Request,
     registry: RegistryDep,
@@ -152,27 +172,28 @@ async def stored_answer(
     format: Format | None,
     scene: bool,
     overlays: bool,
-    model: type[Answer],
-) -> Answer | Response:
-    """A stored result: its JSON answer validated as ``model``, or its GLB (a Response).
+    model: type[BaseModel],
+) -> Response:
+    """A stored result: its JSON answer validated as ``model``, or its GLB.
 
     404 for an unknown id, 410 when the stored answer no longer fits this code's shapes.
+    Reading, validating and serialising run in a thread, never on the event loop.
     """
     rid, chosen = _split(reference, format)
+    if chosen == "json":
+        body = await to_thread.run_sync(_stored_json, store_of(request), rid, kind, model)
+        if body is None:
+            raise not_found(KIND_NAMES[kind], rid, "id")
+        return Response(body, media_type="application/json")
     stored = await to_thread.run_sync(store_of(request).get, rid, kind)
     if stored is None:
         raise not_found(KIND_NAMES[kind], rid, "id")
-    try:
-        answer = model.model_validate(stored.response)
-    except ValidationError as exc:
-        raise _unreadable(stored) from exc
-    if chosen == "json":
-        return answer
 
     def export() -> bytes:
         try:
+            model.model_validate(stored.response)
             return result_glb(registry, stored, with_scene=scene, with_overlays=overlays)
-        except (KeyError, TypeError, IndexError) as exc:  # a shape older code wrote
+        except (ValidationError, KeyError, TypeError, IndexError) as exc:  # older code's
             raise _unreadable(stored) from exc
 
     data = await to_thread.run_sync(export)
