@@ -578,7 +578,7 @@ def sequence_motion(
             trials.append(dynamic_refused)
     keep: tuple[BuiltMotion, int] | None = None
     builds = max(tuning.DYNAMIC_MAX_BUILDS, math.ceil(tuning.DYNAMIC_BUILDS_PER_PHASE * n))
-    resting: set[int] = set()  # phases stopping at their transition points (2PAC's fallback)
+    resting: set[int] = set()  # phases stopping at rest between phases (2PAC's fallback)
     for _ in range(builds):
         if dynamic is None:
             break
@@ -621,7 +621,7 @@ def sequence_motion(
         if found is not None:
             dynamic, keep = found, (candidate, lo)
             continue
-        # slowing cannot help: the window stops at its transition points (2PAC's fallback),
+        # slowing cannot help: the window stops at rest between its phases (2PAC's fallback),
         # the dynamic curve kept on both sides of it
         stopped = _rest_window(
             character,

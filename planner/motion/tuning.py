@@ -243,7 +243,7 @@ rest, which is kept (later phases shifted in time). When no such window curve pa
 the window reaches to the plan's end."""
 
 REST_SIDE_BEFORE = 3
-"""Where slowing a window cannot make it clean, it stops at its transition points (2PAC's
+"""Where slowing a window cannot make it clean, it stops at rest between its phases (2PAC's
 fallback) and the dynamic curve is found again on each side to stop there: the one phase
 next to it, else up to this many phases before it (or every phase after it)."""
 
