@@ -438,13 +438,12 @@ class _NodeStances:
         self.checker = KeyframeChecker(model.character, model.scene.collision.bvh)
         self.surfaces = {surface.id: surface for surface in model.surfaces}
         self.roadmap = roadmap
-        self._made: dict[tuple[int, int], tuple[ContactState, bool]] = {}
+        self._made: dict[int, tuple[ContactState, bool]] = {}
 
     def of(self, nodes: RoadmapNodes, i: int, label: int) -> tuple[ContactState, bool]:
         """The contact state of node ``i`` of ``nodes`` (``label``: its index in the roadmap,
         or START / GOAL) and whether it is clear."""
-        key = (label, i) if label < 0 else (label, 0)
-        made = self._made.get(key)
+        made = self._made.get(label)
         if made is None:
             row = _node_row(nodes, i)
             stance = self.stancer.stance(
@@ -458,7 +457,7 @@ class _NodeStances:
             state = _state(self.character, row, stance)
             check = self.checker.check(np.asarray(state.q), state.contacts)
             made = (state, not check.colliding)
-            self._made[key] = made
+            self._made[label] = made
         return made
 
     def clear(self, i: int) -> bool:

@@ -32,23 +32,9 @@ from service.routes import scenes as scenes_route
 from service.schemas import TwisterStepResponse
 from service.settings import Settings
 from service.workers import compute_niceness
+from tests.live_fixtures import LIVE_PLAN, LIVE_STEP
 
 pytestmark = pytest.mark.anyio
-PLAN = {
-    "character": "humanoid",
-    "scene": "flat",
-    "start": {"stand_at": [0.0, 0.0, 0.0]},
-    "goal": {"stand_at": [0.5, 0.0, 0.0]},
-    "seed": 1,
-    "time_budget_s": 10,
-}
-STEP = {
-    "character": "quadruped",
-    "scene": "twister",
-    "stand_at": [0.0, 0.0, 0.0],
-    "action": {"kind": "break", "limb": "lf_foot"},
-    "seed": 3,
-}
 
 
 def _calls(dependant: Dependant) -> Iterator[Callable[..., Any]]:
@@ -141,7 +127,7 @@ async def test_a_job_is_marked_running_off_the_event_loop_thread(
         return start(store, job_id)
 
     monkeypatch.setattr(SqliteJobStore, "start", recording_start)
-    posted = await client.post("/v1/plans", json={**PLAN, "async": True})
+    posted = await client.post("/v1/plans", json={**LIVE_PLAN, "async": True})
     assert posted.status_code == 202, posted.text
     location = posted.headers["location"]
     for _ in range(600):
@@ -175,7 +161,7 @@ async def test_a_stored_answer_is_validated_and_serialised_off_the_event_loop_th
 ) -> None:
     """A stored plan of a few MB takes tens of ms to validate and serialise: in a thread.
     The body is what FastAPI's ``response_model`` serialisation gave (by alias)."""
-    posted = await client.post("/v1/twister/step", json=STEP)
+    posted = await client.post("/v1/twister/step", json=LIVE_STEP)
     assert posted.status_code == 200, posted.text
     step_id = posted.json()["id"]
     loop_thread = threading.get_ident()
