@@ -190,7 +190,8 @@ class JumpInfo:
     leaves rest), contact break (takeoff), apex, contact creation (touchdown), rest (the
     landing has stopped the COM). push_acceleration / landing_acceleration : (3,) m/s^2, the
     COM's constant acceleration in the push and the landing; push_in_cone / landing_in_cone
-    : the contact force they need lies in the node's centroidal cone."""
+    : the contact force they need lies in the node's centroidal cone; push_in_reach /
+    landing_in_reach : the COM's travel in them stays within the legs' reach."""
 
     takeoff: JumpEnd
     landing: JumpEnd
@@ -206,6 +207,8 @@ class JumpInfo:
     landing_acceleration: FloatArray
     push_in_cone: bool
     landing_in_cone: bool
+    push_in_reach: bool
+    landing_in_reach: bool
 
 
 @dataclass(frozen=True, slots=True)
@@ -417,6 +420,12 @@ def plan_jumps(
         for what, ok in (("push", j.push_in_cone), ("landing", j.landing_in_cone))
         if not ok
     ]
+    problems += [
+        f"jump {i}: the {what} needs the COM to travel beyond the legs' reach"
+        for i, j in enumerate(jumps)
+        for what, ok in (("push", j.push_in_reach), ("landing", j.landing_in_reach))
+        if not ok
+    ]
     if problems:
         return PlanResult(PlanStatus.APPROXIMATE, plan, stats, capped("; ".join(problems)))
     return PlanResult(PlanStatus.SOLVED, plan, stats, capped(found.message))
@@ -537,6 +546,8 @@ def _info(
         _ro(when.landing_acceleration),
         when.push_in_cone,
         when.landing_in_cone,
+        when.push_in_reach,
+        when.landing_in_reach,
     )
 
 

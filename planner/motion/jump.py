@@ -8,10 +8,15 @@ follows the parabola ``c0 + v0 t + g t^2 / 2`` exactly (a quadratic Bezier is th
 parabola) and every limb that lands or took off is carried from its takeoff pose to its
 landing pose; the landing, in which the COM decelerates at a constant rate from the impact
 velocity to rest. A last shift stands the body up on the last landing's contacts. The COM
-velocity is continuous everywhere; its acceleration is ``JUMP_ACCELERATION`` (more when the
-legs' reach demands a shorter push) and the contact force it needs, m (c'' - g), is checked
-against the node's centroidal cone (the push or landing is lengthened or shortened until it passes,
-or the timing says it does not). Every stance phase of a jump holds its contacts rigidly (equality
+velocity is continuous everywhere; its acceleration is ``JUMP_ACCELERATION``, more when the
+legs' reach demands a shorter push: the crouch the push starts from and the point the
+landing stops at are never further from the takeoff or touchdown COM than the stance
+reaches (a short-legged body pushes and lands harder, it does not crouch below its feet).
+The contact force it needs, m (c'' - g), is checked against the node's centroidal cone (the
+push or landing is lengthened within reach or shortened until it passes, or the timing says
+it does not; likewise when even the shortest push travels beyond reach). The shift before
+each push is lengthened so that the push and the landing each hold a keyframe, and the
+motion lasts a whole number of keyframe periods. Every stance phase of a jump holds its contacts rigidly (equality
 constraints of the tracker's QP, finer control steps): the tracked COM lags its curve where the
 joint speed limits cannot follow it, the feet never slide.
 """
@@ -85,7 +90,8 @@ class JumpTiming:
     touchdown : the landing contacts are made; rest : the COM is at rest again.
     push_acceleration / landing_acceleration : (3,) m/s^2, the COM's constant acceleration
     in each; push_in_cone / landing_in_cone : the contact force m (c'' - g) lies in the node's
-    centroidal cone."""
+    centroidal cone; push_in_reach / landing_in_reach : the COM's travel in each stays within
+    the stance's reach (``_reach``)."""
 
     crouch: float
     push: float
@@ -97,6 +103,8 @@ class JumpTiming:
     landing_acceleration: FloatArray
     push_in_cone: bool
     landing_in_cone: bool
+    push_in_reach: bool
+    landing_in_reach: bool
 
 
 def in_cone(force: FloatArray, axis: FloatArray, mu: float) -> bool:
@@ -108,6 +116,17 @@ def in_cone(force: FloatArray, axis: FloatArray, mu: float) -> bool:
     return norm > 0.0 and float(force @ axis) >= norm * math.cos(math.atan(mu)) - 1e-9
 
 
+@dataclass(frozen=True, slots=True)
+class StanceTiming:
+    """A takeoff push or a landing at constant acceleration: its duration (s), whether its
+    contact force lies in the cone (``in_cone``) and whether its COM travel, |v| duration / 2,
+    stays within the stance's reach (``in_reach``)."""
+
+    duration: float
+    in_cone: bool
+    in_reach: bool
+
+
 def stance_duration(
     velocity: FloatArray,
     gravity: FloatArray,
@@ -116,26 +135,33 @@ def stance_duration(
     reach: float,
     *,
     landing: bool,
-) -> tuple[float, bool]:
-    """Duration (s) of a takeoff push reaching ``velocity`` (3,) m/s from rest (or, with
-    ``landing``, of a landing stopping it) at constant acceleration, and whether its contact
-    force (c'' - g, per kg) lies in the cone (``axis`` (3,), ``mu``). Nominally the push
-    accelerates at ``JUMP_ACCELERATION``, shortened so the COM travels at most ``reach`` m
-    (never under ``JUMP_MIN_STANCE_S``); when the cone refuses it, longer durations up to
-    ``JUMP_MAX_STANCE_S``, then shorter ones, are tried."""
+) -> StanceTiming:
+    """A takeoff push reaching ``velocity`` (3,) m/s from rest (or, with ``landing``, a
+    landing stopping it) at constant acceleration, its contact force c'' - g (per kg) checked
+    against the cone (``axis`` (3,), ``mu``).
+
+    The COM travels |v| T / 2 in a stance of T s, which the legs' ``reach`` (m) bounds: T <=
+    2 reach / |v|. Nominally the push accelerates at ``JUMP_ACCELERATION``, shortened (pushing
+    harder) until its travel is within reach. When the cone refuses it, longer durations up to
+    that bound (and ``JUMP_MAX_STANCE_S``), then shorter ones down to ``JUMP_MIN_STANCE_S``,
+    are tried; when none passes, the nominal one is kept and ``in_cone`` says so. A reach so
+    short that even ``JUMP_MIN_STANCE_S`` travels beyond it gives that shortest stance, with
+    ``in_reach`` False: the velocity cannot be reached (or stopped) within the legs' reach."""
     speed = float(np.linalg.norm(velocity))
-    nominal = speed / tuning.JUMP_ACCELERATION
+    longest = tuning.JUMP_MAX_STANCE_S
     if speed > 0.0:
-        nominal = min(nominal, 2.0 * reach / speed)
-    nominal = min(max(nominal, tuning.JUMP_MIN_STANCE_S), tuning.JUMP_MAX_STANCE_S)
+        longest = min(longest, 2.0 * reach / speed)
+    longest = max(longest, tuning.JUMP_MIN_STANCE_S)
+    nominal = min(max(speed / tuning.JUMP_ACCELERATION, tuning.JUMP_MIN_STANCE_S), longest)
+    in_reach = 0.5 * speed * nominal <= reach + 1e-9
     sign = -1.0 if landing else 1.0
-    longer = np.linspace(nominal, tuning.JUMP_MAX_STANCE_S, 12)
+    longer = np.linspace(nominal, longest, 12)
     shorter = np.linspace(nominal, tuning.JUMP_MIN_STANCE_S, 6)[1:]
     for duration in (*longer, *shorter):
         force = sign * velocity / duration - gravity
         if in_cone(force, axis, mu):
-            return float(duration), True
-    return nominal, False
+            return StanceTiming(float(duration), True, in_reach)
+    return StanceTiming(nominal, False, in_reach)
 
 
 def _reach(state: ContactState, com: FloatArray) -> float:
@@ -158,6 +184,37 @@ def _shift(a: FloatArray, b: FloatArray, t0: float, min_s: float) -> Any:
     )
     control = curve.segments[0].control_points
     return trajectory.BezierCurve(control, t0, t0 + float(times[-1]))
+
+
+def _keyed_start(earliest: float, windows: Sequence[tuple[float, float]], period: float) -> float:
+    """The earliest time p >= ``earliest`` (s) at which a phase sequence may start so that
+    each of ``windows`` ((offset from p, duration) s) holds a keyframe of the grid k
+    ``period`` inside it; when no p holds one in all, in as many of the first ones as can be
+    (a push or landing shorter than a keyframe period then still shows in a keyframe)."""
+    for count in range(len(windows), 0, -1):
+        kept = windows[:count]
+        candidates = [earliest]
+        for offset, length in kept:
+            margin = min(_KEY_MARGIN_S, 0.25 * length)
+            first = math.floor((earliest + offset) / period)
+            for k in range(first, first + 3):
+                candidates.append(k * period - offset - length + margin)
+        for p in sorted(c for c in candidates if earliest <= c <= earliest + period + 1e-12):
+            if all(_keyed(p + offset, length, period) for offset, length in kept):
+                return p
+    return earliest
+
+
+def _keyed(t0: float, length: float, period: float) -> bool:
+    """Whether a grid time k ``period`` lies in [t0, t0 + length] (s), ``_KEY_MARGIN_S`` (or
+    a quarter of ``length``) inside it."""
+    margin = min(_KEY_MARGIN_S, 0.25 * length)
+    k = math.ceil((t0 + margin - 1e-12) / period)
+    return k * period <= t0 + length - margin + 1e-12
+
+
+_KEY_MARGIN_S = 1e-3
+"""s: a keyframe that shows a push or landing lies at least this far inside it."""
 
 
 def _aimed(
@@ -224,10 +281,10 @@ def jump_spec(
     for i, leg in enumerate(legs):
         before, after = stances[i], stances[i + 1]
         g = leg.gravity
-        push_s, push_ok = stance_duration(
+        push = stance_duration(
             leg.v0, g, leg.takeoff_axis, leg.takeoff_mu, _reach(before, coms[i]), landing=False
         )
-        land_s, land_ok = stance_duration(
+        land = stance_duration(
             leg.vimp,
             g,
             leg.landing_axis,
@@ -235,11 +292,15 @@ def jump_spec(
             _reach(after, coms[i + 1]),
             landing=True,
         )
+        push_s, land_s = push.duration, land.duration
         crouch = leg.com0 - 0.5 * push_s * leg.v0
         com1 = leg.com1
         rest = com1 + 0.5 * land_s * leg.vimp
-        # shift into the crouch, on the takeoff contacts
-        shift = _shift(here, crouch, t, tuning.JUMP_MIN_SHIFT_S)
+        # shift into the crouch, on the takeoff contacts, lengthened so that the push and
+        # the landing each hold a keyframe (they may be shorter than a keyframe period)
+        natural = _shift(here, crouch, t, tuning.JUMP_MIN_SHIFT_S).t1
+        start = _keyed_start(natural, ((0.0, push_s), (push_s + leg.duration, land_s)), 1.0 / rate)
+        shift = _shift(here, crouch, t, max(start - t, tuning.JUMP_MIN_SHIFT_S))
         segments.append(shift)
         posture = _aimed(np.asarray(before.q), before.q, here, coms[i])
         phases.append(
@@ -312,14 +373,19 @@ def jump_spec(
                 t,
                 np.asarray(leg.v0 / push_s, dtype=np.float64),
                 np.asarray(-leg.vimp / land_s, dtype=np.float64),
-                push_ok,
-                land_ok,
+                push.in_cone,
+                land.in_cone,
+                push.in_reach,
+                land.in_reach,
             )
         )
         here = rest
-    # stand up on the last landing's contacts
+    # stand up on the last landing's contacts, until a whole number of keyframe periods
+    # (the keyframe grid is then k / rate, the one the pushes and landings were keyed on)
     last = stances[-1]
-    shift = _shift(here, coms[-1], t, tuning.JUMP_MIN_SHIFT_S)
+    natural = _shift(here, coms[-1], t, tuning.JUMP_MIN_SHIFT_S).t1
+    end = math.ceil(natural * rate - 1e-9) / rate
+    shift = _shift(here, coms[-1], t, end - t)
     segments.append(shift)
     posture = _aimed(np.asarray(last.q), last.q, here, coms[-1])
     phases.append(

@@ -267,15 +267,18 @@ JUMP_ACCELERATION = 2.0 * 9.81
 """m/s^2: the takeoff push accelerates the COM from rest to the takeoff velocity, the landing
 decelerates it from the impact velocity to rest, each at a constant acceleration: this one
 when the legs reach far enough (the push or landing lasts |v| / a, the COM travels
-|v|^2 / 2a; 2 g is a strong human jump), more when they do not (``JUMP_CROUCH_SHARE``)."""
+|v|^2 / 2a; 2 g is a strong human jump), more when they do not (``JUMP_CROUCH_SHARE``): a
+short-legged body pushes and lands harder and shorter, never deeper than its reach."""
 
 JUMP_CROUCH_SHARE = 0.3
 """The COM travels at most this share of its standing height above the contacts during a
 push or a landing (the legs' reach): a fast jump then pushes or lands harder and shorter."""
 
-JUMP_MIN_STANCE_S = 0.1
-"""s: shortest takeoff push or landing: three keyframes at 30 Hz, so that no velocity changes
-between two keyframes (a body whose legs reach less pushes and lands deeper than its reach)."""
+JUMP_MIN_STANCE_S = 0.01
+"""s: shortest takeoff push or landing (a 180 Hz control step and a half at 30 keyframes per
+second). A push the legs' reach would make shorter is reported as out of reach (the body
+cannot reach the takeoff velocity); a fast push may fall between two keyframes, the COM curve
+and the contacts still say when it happens."""
 
 JUMP_MAX_STANCE_S = 0.6
 """s: longest takeoff push or landing tried when the contact cone refuses the nominal one."""
