@@ -16,9 +16,9 @@ The contact force it needs, m (c'' - g), is checked against the node's centroida
 push or landing is lengthened within reach or shortened until it passes, or the timing says
 it does not; likewise when even the shortest push travels beyond reach). The shift before
 each push is lengthened so that the push and the landing each hold a keyframe, and the
-motion lasts a whole number of keyframe periods. Every stance phase of a jump holds its contacts rigidly (equality
-constraints of the tracker's QP, finer control steps): the tracked COM lags its curve where the
-joint speed limits cannot follow it, the feet never slide.
+motion lasts a whole number of keyframe periods. Every stance phase of a jump holds its
+contacts rigidly (equality constraints of the tracker's QP, finer control steps): the tracked
+COM lags its curve where the joint speed limits cannot follow it, the feet never slide.
 """
 
 from __future__ import annotations
@@ -187,34 +187,41 @@ def _shift(a: FloatArray, b: FloatArray, t0: float, min_s: float) -> Any:
 
 
 def _keyed_start(earliest: float, windows: Sequence[tuple[float, float]], period: float) -> float:
-    """The earliest time p >= ``earliest`` (s) at which a phase sequence may start so that
-    each of ``windows`` ((offset from p, duration) s) holds a keyframe of the grid k
-    ``period`` inside it; when no p holds one in all, in as many of the first ones as can be
-    (a push or landing shorter than a keyframe period then still shows in a keyframe)."""
+    """A time p in [``earliest``, ``earliest`` + ``period``) (s) at which a phase sequence may
+    start so that each of ``windows`` ((offset from p, duration) s) holds a keyframe of the
+    grid k ``period``, as near its middle as can be (a velocity changing within a keyframe
+    period is then seen half before and half after it); when no p gives every window one, as
+    many of the first ones as can be (a push or landing shorter than a keyframe period then
+    still shows in a keyframe)."""
+    candidates = earliest + period * np.arange(_KEY_CANDIDATES) / _KEY_CANDIDATES
     for count in range(len(windows), 0, -1):
-        kept = windows[:count]
-        candidates = [earliest]
-        for offset, length in kept:
-            margin = min(_KEY_MARGIN_S, 0.25 * length)
-            first = math.floor((earliest + offset) / period)
-            for k in range(first, first + 3):
-                candidates.append(k * period - offset - length + margin)
-        for p in sorted(c for c in candidates if earliest <= c <= earliest + period + 1e-12):
-            if all(_keyed(p + offset, length, period) for offset, length in kept):
-                return p
+        scores = [
+            max(_off_middle(p + offset, length, period) for offset, length in windows[:count])
+            for p in candidates
+        ]
+        best = int(np.argmin(scores))
+        if math.isfinite(scores[best]):
+            return float(candidates[best])
     return earliest
 
 
-def _keyed(t0: float, length: float, period: float) -> bool:
-    """Whether a grid time k ``period`` lies in [t0, t0 + length] (s), ``_KEY_MARGIN_S`` (or
-    a quarter of ``length``) inside it."""
+def _off_middle(t0: float, length: float, period: float) -> float:
+    """How far (a share of ``length``) the grid time k ``period`` nearest the middle of
+    [t0, t0 + length] (s) lies from that middle; inf when none lies ``_KEY_MARGIN_S`` (or a
+    quarter of ``length``) inside it."""
     margin = min(_KEY_MARGIN_S, 0.25 * length)
-    k = math.ceil((t0 + margin - 1e-12) / period)
-    return k * period <= t0 + length - margin + 1e-12
+    middle = t0 + 0.5 * length
+    nearest = round(middle / period) * period
+    if not t0 + margin <= nearest <= t0 + length - margin:
+        return math.inf
+    return abs(nearest - middle) / length
 
 
 _KEY_MARGIN_S = 1e-3
 """s: a keyframe that shows a push or landing lies at least this far inside it."""
+
+_KEY_CANDIDATES = 64
+"""Start times tried per keyframe period by ``_keyed_start``."""
 
 
 def _aimed(
