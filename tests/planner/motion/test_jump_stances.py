@@ -143,3 +143,14 @@ def test_every_push_and_landing_holds_a_keyframe(
     for phase in spec.phases:
         inside = grid[(grid > phase.t0) & (grid < phase.t1)]
         assert len(inside) >= 1, (phase.t0, phase.t1)
+
+
+def test_a_jump_too_fast_for_the_legs_is_reported_in_its_timing() -> None:
+    """A 0.05 s flight 0.6 m away needs about 12 m/s: even the shortest push
+    (``JUMP_MIN_STANCE_S``) travels beyond the hexapod's reach, and the timing says so."""
+    character, stances, leg = _hexapod_jump(rise=0.0, speed_scale=0.1)
+    spec, (timing,) = jump_spec(character, stances, [leg])
+    assert not timing.push_in_reach and not timing.landing_in_reach
+    assert timing.takeoff - timing.push == pytest.approx(tuning.JUMP_MIN_STANCE_S)
+    travel = float(np.linalg.norm(spec.com(timing.push) - leg.com0))
+    assert travel > _reach(stances[0], leg.com0)
