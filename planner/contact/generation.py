@@ -307,6 +307,13 @@ def _clear_of(
     return None
 
 
+AVOID_RADIUS = 0.1
+"""m: a contact re-planned because the whole-body motion could not make it is not sought
+again this close to where it was (``create_contact(avoid=)``): a limb's collision shapes are
+a few centimetres across, so a nearer contact would meet the same obstacle."""
+_DETOUR_SHARE = 1.3
+"""A surface whose nearest point is avoided is asked for its points nearest to points this
+many ``AVOID_RADIUS`` around the avoided one instead."""
 _HEADROOM = 0.1  # m of free space wanted above a contact point
 _REAIM_RADIUS = 0.05  # m: a whole-body reach that ends this close is aimed again where it got
 
@@ -376,6 +383,27 @@ class _Candidate:
     seeds: NDArray[np.int64]
 
 
+def _banned(point: FloatArray, banned: FloatArray) -> bool:
+    """Whether ``point`` (3,) lies within ``AVOID_RADIUS`` of a point of ``banned`` (m, 3)."""
+    return len(banned) > 0 and float(np.min(np.linalg.norm(banned - point, axis=1))) <= AVOID_RADIUS
+
+
+def _detours(point: FloatArray, banned: FloatArray) -> list[FloatArray]:
+    """Desired points (3,) around the banned point nearest ``point``, ``_DETOUR_SHARE``
+    times ``AVOID_RADIUS`` from it in the horizontal plane: straight away from it first,
+    then turning both ways in eighths of a turn."""
+    centre = banned[int(np.argmin(np.linalg.norm(banned - point, axis=1)))]
+    away = (point - centre)[:2]
+    angle = float(np.arctan2(away[1], away[0])) if float(np.linalg.norm(away)) > 1e-6 else 0.0
+    turns = (0, 1, -1, 2, -2, 3, -3, 4)
+    out = []
+    for turn in turns:
+        a = angle + turn * np.pi / 4.0
+        offset = _DETOUR_SHARE * AVOID_RADIUS * np.array([np.cos(a), np.sin(a), 0.0])
+        out.append(centre + offset)
+    return out
+
+
 def _candidates(
     ctx: ContactContext,
     state: ContactState,
@@ -385,7 +413,11 @@ def _candidates(
     target: FloatArray | None,
     lookahead: FloatArray | None,
     randomness: float,
+    banned: FloatArray | None = None,
 ) -> list[_Candidate]:
+    """Up to ``max_candidates`` contact candidates of ``limb``, best first: per surface, its
+    point nearest to the desired one, or, when that lies within ``AVOID_RADIUS`` of a point
+    of ``banned`` (m, 3), its nearest to points around the banned one."""
     spec = ctx.character.limb(limb)
     db = ctx.data.limb(limb).database
     forward(ctx, state.q)
@@ -410,6 +442,9 @@ def _candidates(
     out: list[_Candidate] = []
     for sid in ids[order].tolist():
         point = _cached_point(ctx, sid, desired, radius)
+        if point is not None and banned is not None and _banned(point, banned):
+            aims = (_cached_point(ctx, sid, aim, radius) for aim in _detours(point, banned))
+            point = next((p for p in aims if p is not None and not _banned(p, banned)), None)
         if point is None or not _uncovered(ctx, sid, point, radius):
             continue
         if np.linalg.norm(point - base) > reach:
@@ -572,6 +607,7 @@ def create_contact(
     target: FloatArray | None = None,
     lookahead: FloatArray | None = None,
     randomness: float = 0.05,
+    avoid: Sequence[FloatArray] = (),
 ) -> ContactAttempt:
     """Put the free ``limb`` on an allowed surface (``surface`` id, or near ``target`` (3,)).
 
@@ -582,7 +618,9 @@ def create_contact(
     the new COM balanced on the old contacts with the margin and inside the new kinematic set
     (so the 2PAC transition exists). The first candidate passing wins; a colliding limb
     posture is re-sampled from the next database seed. ``randomness`` (m) is the scale of
-    a uniform score jitter drawn from ``rng`` (ties and game-like variety).
+    a uniform score jitter drawn from ``rng`` (ties and game-like variety). Candidates within
+    ``AVOID_RADIUS`` of a point of ``avoid`` ((3,) each, world frame) are skipped (a contact
+    change the whole-body motion could not make, re-planned).
     """
     if not ctx.has_limb(limb):
         return _fail(state, FailureReason.UNKNOWN_LIMB, limb, f"unknown limb {limb!r}")
@@ -598,7 +636,8 @@ def create_contact(
         surfaces = ctx.surfaces
     tgt = None if target is None else np.asarray(target, dtype=np.float64).reshape(3)
     look = None if lookahead is None else np.asarray(lookahead, dtype=np.float64).reshape(3)
-    cands = _candidates(ctx, state, limb, rng, surfaces, tgt, look, randomness)
+    banned = np.asarray(avoid, dtype=np.float64).reshape(-1, 3)
+    cands = _candidates(ctx, state, limb, rng, surfaces, tgt, look, randomness, banned)
     if not cands:
         return _fail(state, FailureReason.NOTHING_REACHABLE, limb, "no surface within reach")
     worst = FailureReason.NOTHING_REACHABLE

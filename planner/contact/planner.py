@@ -5,6 +5,7 @@ COM trajectory and keyframes (DESIGN.md steps 3-8).
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -118,6 +119,20 @@ def _resolve(
 
 _RETRY_JITTERS = (0.05, 0.15, 0.3, 0.3)
 SEARCH_SHARE = budgets.SEARCH_SHARE  # of the work (and of the clock cap) for the search
+MAX_REPLAN_WALKS = 8
+"""Contact walks a plan may start again when its whole-body motion cannot make a contact
+change (2PAC 7.2's last resort, after re-sampling the swing, slowing and stopping at
+rest)."""
+REPLAN_DEPTH = 2
+"""How far back a contact change is planned again: the change itself, then the one that
+put its limb where the failing swing starts."""
+REPLAN_RESERVE = 1.5
+"""A contact change is planned again only while the work left would build the fallback
+(2PAC's curve through the states first planned, whole) this many times over: re-planning
+never costs the answer its keyframes."""
+REPLAN_JITTERS = (0.05, 0.15, 0.3)
+"""m, the contact candidates' score jitter of the walks tried for one re-planned change (as
+a stuck walk's retries)."""
 
 
 def _better(
@@ -137,6 +152,12 @@ def _position(endpoint: Endpoint) -> FloatArray:
         return np.asarray(endpoint.stand_at)
     assert endpoint.root_pose is not None
     return np.asarray(endpoint.root_pose[:3, 3])
+
+
+def _made(states: Sequence[ContactState], k: int) -> str | None:
+    """The limb whose contact the change from state k to k + 1 makes, if it makes one."""
+    created = set(states[k + 1].limbs) - set(states[k].limbs)
+    return next(iter(created)) if created else None
 
 
 def _root_pose(character: Character, q: FloatArray) -> FloatArray:
@@ -301,6 +322,87 @@ def plan_contact_motion(
     sequence, poses, path = best
     states = sequence.value or (start_state.value,)
     budget.charge(budgets.COM_STATE_UNITS * len(states))  # the COM trajectory, never cut
+    goal_reached = goal_state.value
+    avoided: list[tuple[str, FloatArray]] = []
+    walks = [0]  # contact walks started again
+    swings_replanned: set[tuple[str, int, tuple[float, ...]]] = set()  # (limb, origin, root)
+    replanned = [0]  # states checked by the re-plans' walks so far (charged per cycle)
+
+    def replan_walk(limit: float) -> Termination:
+        # a walk's cycle and the states it checked, until ``limit`` units are used in all
+        def poll() -> bool:
+            new = ctx.work.states_checked - replanned[0]
+            replanned[0] = ctx.work.states_checked
+            cost = cycle_units + budgets.STATE_CHECK_UNITS * new
+            return budget.poll(cost, limit, budget.cap)
+
+        return poll
+
+    keyframe_units = budgets.keyframe_units(character)
+
+    def replan(
+        planned: Sequence[ContactState], phase: int, reserve_s: float
+    ) -> tuple[ContactState, ...] | None:
+        # the contact change phase ``phase`` could not make, planned again from the last
+        # state before its limb let go, that contact sought elsewhere; failing that, from
+        # before the limb was put where the swing starts, that contact sought elsewhere too
+        change = next(
+            (k for k in (phase, phase - 1) if 0 <= k < len(planned) - 1 and _made(planned, k)),
+            None,
+        )
+        # the work the fallback (2PAC's curve through the first states, built whole) needs
+        reserve = REPLAN_RESERVE * reserve_s * opts.rate * keyframe_units
+        if change is None or opts.timing.attractors or budget.left() <= reserve:
+            return None
+        limb = _made(planned, change)
+        assert limb is not None
+        made = planned[change + 1].contact(limb)
+        assert made is not None
+        # (contact to avoid, the state the swing changes from): the contact made, then the
+        # one the swing starts from, each as far back as the state before the limb let go
+        levels: list[tuple[FloatArray, int]] = []
+        before = change
+        point = np.asarray(made.position)
+        for _ in range(REPLAN_DEPTH):
+            held = [j for j in range(before + 1) if planned[j].contact(limb) is not None]
+            origin = held[-1] if held else before
+            levels.append((point, origin))
+            start = planned[origin].contact(limb)
+            freed = [j for j in range(origin) if planned[j].contact(limb) is None]
+            if start is None or not freed:
+                break
+            point, before = np.asarray(start.position), freed[-1]
+        # a swing that failed again from the same contact: its start is what fails
+        first = levels[0][1]
+        key = (limb, first, tuple(np.round(np.asarray(planned[first].q[:3]), 3).tolist()))
+        if key in swings_replanned and len(levels) > 1:
+            levels = levels[1:]
+        swings_replanned.add(key)
+        for point, origin in levels:
+            avoided.append((limb, point))
+            for jitter in REPLAN_JITTERS:
+                if walks[0] >= MAX_REPLAN_WALKS or budget.left() <= reserve:
+                    return None
+                walks[0] += 1
+                replanned[0] = ctx.work.states_checked
+                again = contact_sequence(
+                    ctx,
+                    planned[origin],
+                    poses,
+                    goal_reached,
+                    rng=rng,
+                    until=replan_walk(budget.units - reserve),
+                    params=replace(opts.sequence, jitter=max(opts.sequence.jitter, jitter)),
+                    limbs=opts.limbs,
+                    avoid=tuple(avoided),
+                    resume=True,
+                )
+                if again.value is not None and (
+                    again.status is PlanStatus.SOLVED or sequence.status is not PlanStatus.SOLVED
+                ):
+                    return (*planned[:origin], *again.value)
+        return None
+
     motion = sequence_motion(
         character,
         data,
@@ -308,8 +410,10 @@ def plan_contact_motion(
         states,
         rate=opts.rate,
         timing=opts.timing,
-        until=budget.stage(budgets.keyframe_units(character)),  # every unit left, whole cap
+        until=budget.stage(keyframe_units),  # every unit left, whole cap
+        replan=replan,
     )
+    states = motion.states or states
     lap("motion")
     status = sequence.status
     if status is PlanStatus.TIMEOUT and len(states) > 1:

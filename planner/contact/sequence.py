@@ -341,6 +341,8 @@ def contact_sequence(
     until: Termination,
     params: SequenceParams | None = None,
     limbs: Sequence[str] = (),
+    avoid: Sequence[tuple[str, FloatArray]] = (),
+    resume: bool = False,
 ) -> PlanResult[tuple[ContactState, ...]]:
     """States from ``start`` along the guide ``poses`` (n, 4, 4) to ``goal``.
 
@@ -350,9 +352,16 @@ def contact_sequence(
     SOLVED when the body has reached the end of the guide and every goal contact is made
     (within ``goal_tolerance``); APPROXIMATE with the states found so far when stuck; TIMEOUT
     (with the partial states) when ``until`` fires.
+
+    Re-planning (``resume``): the start stands part-way along the guide, and the walk goes
+    on from the guide sample nearest its root; no contact of a limb is made within
+    ``AVOID_RADIUS`` of that limb's points in ``avoid`` ((limb, (3,) world point) each).
     """
     p = params or SequenceParams()
     guide = _Guide.of(np.asarray(poses, dtype=np.float64))
+    avoided: dict[str, list[FloatArray]] = {}
+    for limb_name, point in avoid:
+        avoided.setdefault(limb_name, []).append(np.asarray(point, dtype=np.float64))
     offsets = _effector_offsets(ctx)
     walking = list(start.limbs)
     if goal is not None:
@@ -365,7 +374,7 @@ def contact_sequence(
     states: list[ContactState] = [start]
     current = start  # the body now: states[-1]'s contacts, its posture moved on by advances
     stats: dict[str, float | int | str] = {"breaks": 0, "creations": 0, "cycles": 0}
-    s = 0.0
+    s = guide.progress(np.asarray(start.q[:3]), 0.0) if resume else 0.0
     turn = 0  # index into ``order`` of the limb whose turn it is
 
     def result(status: PlanStatus, message: str = "") -> PlanResult[tuple[ContactState, ...]]:
@@ -468,7 +477,15 @@ def contact_sequence(
             before = np.inf
         for fraction in _STEP_FRACTIONS:
             aim = target if old is None else old.position + fraction * (target - old.position)
-            made = create_contact(ctx, base, limb, rng=rng, target=aim, randomness=p.jitter)
+            made = create_contact(
+                ctx,
+                base,
+                limb,
+                rng=rng,
+                target=aim,
+                randomness=p.jitter,
+                avoid=avoided.get(limb, ()),
+            )
             if not made.ok:
                 continue
             placed = made.state.contact(limb)
@@ -524,7 +541,11 @@ def contact_sequence(
                     moved = True
                 break
         # 2. step the limb furthest from its foothold
-        at_end = s >= guide.length - p.spacing
+        # at the end of the guide (or stuck where the footholds ahead are the guide's last):
+        # the goal's contacts are the footholds
+        at_end = s >= guide.length - p.spacing or (
+            stuck > 0 and s + lookahead * (1 + stuck) >= guide.length
+        )
         # a stuck walker looks further ahead for footholds (a gap between stepping stones)
         reach = lookahead * (1 + stuck)
         wanted = footholds(guide.length if at_end else s + reach)

@@ -11,7 +11,7 @@ it with the whole body (2PAC section 7.2).
 from __future__ import annotations
 
 import math
-from collections.abc import Collection, Sequence
+from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -72,6 +72,16 @@ class SequenceMotion:
     keyframes: tuple[Keyframe, ...]
     report: dict[str, object]
     quality: MotionReport
+    states: tuple[ContactState, ...] = ()
+    """The states animated: those given, or with a suffix re-planned (``replan``)."""
+
+
+Replanner = Callable[[Sequence["ContactState"], int, float], "Sequence[ContactState] | None"]
+"""(states, phase, reserve) -> states sharing a prefix with ``states`` and differing from the
+phase before ``phase`` at the latest, whose contact changes avoid the one ``phase`` could
+not make; None when there are none, or when re-planning would not leave the work of
+``reserve`` seconds of animation (the fallback: 2PAC's curve through the states first
+given, built whole)."""
 
 
 def contact_phase(character: Character, state: ContactState) -> trajectory.ContactPhase:
@@ -330,16 +340,16 @@ def _dynamic_window(
 
 def _rest_point(model: Any, states: Sequence[ContactState], j: int) -> FloatArray:
     """(3,) m, where the COM may stop between phases j and j + 1 (j = -1: the start, j =
-    n - 1: the end): the COM of whichever of the two states holds fewer contacts. Its
-    contacts are the other's but one, and the contact planner balanced it with a margin, so
-    it stands in both phases (2PAC's transition point lies on the edge of the smaller
-    phase's support, where Eq. 1 with a margin has no solution)."""
+    n - 1: the end): the COM of state j + 1, which the contact planner balanced with a margin
+    on both phases' contacts (a release shifts the COM over the contacts that stay; a
+    creation is accepted only with the new COM over the contacts held before), and from
+    which a limb just put down reaches its contact (its state's own posture). 2PAC's
+    transition point lies on the edge of the smaller phase's support, where Eq. 1 with a
+    margin has no solution."""
     n = len(states)
     if j < 0 or j >= n - 1:
         return com_position(model, states[0 if j < 0 else -1].q)
-    a, b = states[j], states[j + 1]
-    fewer = a if len(a.contacts) <= len(b.contacts) else b
-    return com_position(model, fewer.q)
+    return com_position(model, states[j + 1].q)
 
 
 def _rest_window(
@@ -491,6 +501,7 @@ def sequence_motion(
     obstacles: Sequence[tuple[Any, Any]] = (),
     timing: Timing | None = None,
     until: Termination = never,
+    replan: Replanner | None = None,
 ) -> SequenceMotion:
     """COM trajectory and keyframes through ``states`` (at least one) in the scene
     ``scene_bvh`` (coal BVH), keyframes at ``rate`` Hz.
@@ -504,9 +515,16 @@ def sequence_motion(
     If ``until`` (polled once per keyframe tracked) fires while keyframes are computed, the
     remaining phases keep their COM curve but get no keyframes; the report says how many
     phases were animated.
+
+    Where a phase cannot be played cleanly even slowed and stopping at rest, ``replan``
+    (when given) is asked for other contact changes from there on (2PAC 7.2's last
+    resort): the dynamic curve is found again from the first changed phase, joined C2 to
+    the curve before, whose keyframes are kept. The report lists the re-plans
+    (``contact_replans``) and the answer's ``states`` are the ones animated.
     """
     if not states:
         raise ValueError("states: at least one contact state is needed")
+    states = list(states)
     timing = timing or Timing()
     speed = timing.speed
     phases_tr = [contact_phase(character, s) for s in states]
@@ -577,15 +595,86 @@ def sequence_motion(
             )
             trials.append(dynamic_refused)
     keep: tuple[BuiltMotion, int] | None = None
+    replans: list[str] = []
+    original = (states, com_trajectory, attractor_report)
+
+    def _replanned(bad: int) -> tuple[trajectory.DynamicCom, list[float], int] | None:
+        # other contact changes from the phase that fails on: the new states, their 2PAC
+        # curve, and the dynamic curve found again from the first changed phase on (slowed
+        # through the levels as needed), joined C2 to the curve before it
+        nonlocal states, n, phases_tr, com_trajectory, attractor_report
+        assert dynamic is not None
+        if replan is None:
+            return None
+        first_com = original[1]
+        reserve = float(first_com.phase_times[-1] - first_com.phase_times[0])
+        new_states = list(replan(states, bad, reserve) or ())
+        if not new_states:
+            return None
+        same = next(
+            (j for j, (a, b) in enumerate(zip(states, new_states, strict=False)) if a is not b),
+            min(len(states), len(new_states)),
+        )
+        lo = max(0, same - 1)  # the phase before the first changed state heads elsewhere
+        new_com, new_attractors = timed_com(
+            character, data, new_states, timing, swing_durations(character, new_states, speed)
+        )
+        used: list[float] | None = [*factors_tried[:lo], *[levels[0]] * (len(new_states) - lo)]
+        found: trajectory.DynamicCom | None = None
+        while used is not None:
+            found = _dynamic_window(
+                character,
+                data,
+                new_states,
+                new_com,
+                speed,
+                used,
+                lo,
+                len(new_states),
+                dynamic.curve.segments,
+            )
+            if found is not None and found.valid:
+                break
+            found, used = None, _slower(used, lo, len(new_states), levels)
+        if found is None or used is None:
+            trials.append(f"phases {same} on re-planned: no dynamic curve joins them")
+            return None
+        old = dynamic.phase_times
+        segments = [
+            *dynamic.curve.segments[:lo],
+            *(
+                trajectory.BezierCurve(seg.control_points, seg.t0 + old[lo], seg.t1 + old[lo])
+                for seg in found.curve.segments
+            ),
+        ]
+        times = np.concatenate([old[: lo + 1], old[lo] + np.asarray(found.phase_times[1:])])
+        replans.append(
+            f"phase {bad} could not be played: the contact changes from state {same} on "
+            f"were planned again ({len(states) - same} states replaced by "
+            f"{len(new_states) - same})"
+        )
+        states, n = new_states, len(new_states)
+        phases_tr = [contact_phase(character, s) for s in states]
+        com_trajectory, attractor_report = new_com, new_attractors
+        resting.difference_update([j for j in resting if j >= lo])
+        spliced = trajectory.DynamicCom(
+            trajectory.PiecewiseBezier(tuple(segments)), times, found.iterations, True
+        )
+        return spliced, used, lo
+
     builds = max(tuning.DYNAMIC_MAX_BUILDS, math.ceil(tuning.DYNAMIC_BUILDS_PER_PHASE * n))
     resting: set[int] = set()  # phases stopping at rest between phases (2PAC's fallback)
-    for _ in range(builds):
+    tried = 0
+    while tried < builds + tuning.DYNAMIC_MAX_BUILDS * len(replans):  # re-plans add builds
+        tried += 1
         if dynamic is None:
             break
         times_d = np.asarray(dynamic.phase_times, dtype=np.float64)
         candidate = build(dynamic.curve, times_d, trial=True, resume=keep)
         unplayable = candidate.report.shortfall()  # says why a trial was abandoned
         if unplayable is None or candidate.report.cut_short:
+            if replans and unplayable is not None:
+                break  # cut short after re-planning: 2PAC's curve, built whole, is kept
             built, factors = candidate, factors_tried
             curve, times = dynamic.curve, times_d
             methods = tuple("rest_to_rest" if j in resting else "2pac+dynamic" for j in range(n))
@@ -599,7 +688,11 @@ def sequence_motion(
         trials.append(dynamic_refused)
         if bad in resting:
             trials.append(f"phase {bad} fails even stopping at rest")
-            break
+            replanned = _replanned(bad)
+            if replanned is None:
+                break
+            dynamic, factors_tried, keep = replanned[0], replanned[1], (candidate, replanned[2])
+            continue
         # the window around the failing phase, short of the phases already stopping
         floor = max((j + 1 for j in resting if j < bad), default=0)
         ceiling = min((j for j in resting if j > bad), default=n)
@@ -637,17 +730,27 @@ def sequence_motion(
         )
         if stopped is None:
             trials.append(f"{why}; no dynamic curve joins a stop at phases {lo} to {near - 1}")
-            break
+            replanned = _replanned(bad)
+            if replanned is None:
+                break
+            dynamic, factors_tried, keep = replanned[0], replanned[1], (candidate, replanned[2])
+            continue
         trials.append(f"{why}: phases {lo} to {near - 1} stop at rest between phases")
         resting.update(range(lo, near))
         dynamic, factors_tried, first = stopped
         keep = (candidate, first)
     else:
         if dynamic is not None and n >= 2:
-            trials.append(f"no clean curve after {builds} trial builds")
+            trials.append(f"no clean curve after {tried} trial builds")
     if built is None and trials:
         dynamic_refused = trials[-1]
     if built is None:
+        # 2PAC's curve through the states first given (contact changes re-planned for a
+        # dynamic curve that did not come clean are undone)
+        states, com_trajectory, attractor_report = original
+        n, phases_tr = len(states), [contact_phase(character, s) for s in states]
+        if replans:
+            replans.append("no clean dynamic curve with the re-planned changes: all undone")
         curve = com_trajectory.curve
         times = np.asarray(com_trajectory.phase_times, dtype=np.float64)
         methods = com_trajectory.phase_methods
@@ -659,6 +762,7 @@ def sequence_motion(
         "dynamic_slowdown": None if factors is None else max(factors),
         "dynamic_slowdowns": factors,
         "dynamic_trials": trials,
+        "contact_replans": replans,
         "dynamic_refused": None if factors is not None else dynamic_refused,
         "quasi_static_feasible": bool(com_trajectory.quasi_static_feasible),
         "transition_slack": [float(t.slack) for t in com_trajectory.transitions],
@@ -674,4 +778,6 @@ def sequence_motion(
             for r in reports
         ],
     }
-    return SequenceMotion(built.phases, built.com, built.keyframes, report, built.report)
+    return SequenceMotion(
+        built.phases, built.com, built.keyframes, report, built.report, tuple(states)
+    )

@@ -130,11 +130,17 @@ def test_solved_and_every_state_valid(planned) -> None:  # type: ignore[no-untyp
     if name in MOTION_SHORTFALL and result.status is PlanStatus.APPROXIMATE:
         assert result.message.startswith("whole-body motion:"), result.message
         assert not result.value.motion.quality.complete
+        # contact changes planned again for nothing are undone: the answer's states are
+        # the ones first planned, animated on 2PAC's curve
+        replans = result.value.motion.report["contact_replans"]
+        assert not replans or replans[-1].endswith("all undone"), replans
     else:
         assert result.status is PlanStatus.SOLVED, result.message
         assert result.value.motion.quality.complete
     plan = result.value
     assert plan is not None and len(plan.states) >= 3
+    assert plan.motion.states == plan.states  # the states animated are the plan's
+    assert len(plan.motion.phases) == len(plan.states)
     # the scenario's own margin (a 5 kg hexapod asks for less than 1 N)
     ctx = make_context(scene, character, data, scenario_options(SPECS[name]).contact)
     for state in plan.states:
