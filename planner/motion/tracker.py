@@ -57,6 +57,8 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
 _DAQP_EQUALITY = 5  # daqp's constraint sense of an equality row
+# daqp's constraint sense type (numpy converts a ctypes type to a dtype slowly: once here)
+_DAQP_SENSE = np.dtype(ctypes.c_int)
 
 
 @dataclass(frozen=True, slots=True)
@@ -156,6 +158,109 @@ def _saturated(here: FloatArray, target: FloatArray, reach: float) -> FloatArray
     return np.asarray(here + gap * (reach / norm), dtype=np.float64)
 
 
+@dataclass(frozen=True, slots=True, eq=False)
+class _CharacterTerms:
+    """What a tracker needs of its character that no step changes, computed once per
+    character (its arrays read-only): the effectors' shapes, the frame ids, the tasks'
+    nonzero-cost weights and rows, pink's ConfigurationLimit and VelocityLimit rows (per
+    root bound: True, the root's speed bounded) and the cost's constant diagonal."""
+
+    effectors: dict[str, frozenset[int]]
+    frame_ids: dict[str, int]
+    stance_weights: dict[str, tuple[FloatArray, IntArray]]
+    swing_weights: dict[str, tuple[FloatArray, IntArray]]
+    rigid_keep: dict[str, slice]
+    trunk_weights: FloatArray
+    trunk_keep: IntArray
+    config: IntArray
+    config_gain: float
+    g_limits: dict[bool, FloatArray]
+    speeds: dict[bool, FloatArray]
+    speed_index: dict[bool, IntArray]
+    root_nv: int
+    bounded: IntArray
+    lower: FloatArray
+    upper: FloatArray
+    diagonal_terms: FloatArray
+
+
+_TERMS: dict[int, tuple[Character, _CharacterTerms]] = {}
+
+
+def _read_only(array: Any) -> Any:
+    array.flags.writeable = False
+    return array
+
+
+def _character_terms(character: Character) -> _CharacterTerms:
+    """The :class:`_CharacterTerms` of ``character``, memoised per character object."""
+    hit = _TERMS.get(id(character))
+    if hit is not None and hit[0] is character:
+        return hit[1]
+    model = character.model
+    # per task the weights of its error's nonzero-cost rows (pink's FrameTask costs:
+    # position then orientation, in the frame), and those rows' indices
+    stance_weights: dict[str, tuple[FloatArray, IntArray]] = {}
+    swing_weights: dict[str, tuple[FloatArray, IntArray]] = {}
+    rigid_keep: dict[str, slice] = {}
+    for limb in character.limbs:
+        patch = limb.contact == "patch"
+        stance_weights[limb.name] = _nonzero(
+            tuning.STANCE_COST, tuning.STANCE_COST if patch else 0.0
+        )
+        swing_weights[limb.name] = _nonzero(
+            tuning.SWING_POSITION_COST, tuning.SWING_ORIENTATION_COST if patch else 0.0
+        )
+        rigid_keep[limb.name] = slice(0, 6) if patch else slice(0, 3)
+    trunk_weights, trunk_keep = _nonzero(
+        [0.0, 0.0, tuning.TRUNK_HEIGHT_COST], [tuning.TRUNK_COST, tuning.TRUNK_COST, 0.0]
+    )
+    config = ConfigurationLimit(model)
+    g_limits: dict[bool, FloatArray] = {}
+    speeds: dict[bool, FloatArray] = {}
+    speed_index: dict[bool, IntArray] = {}
+    for bounded in (False, True):
+        velocity = VelocityLimit(model, speed_limits(model, root_bounded=bounded))
+        speeds[bounded] = np.asarray(velocity.velocity_limit[velocity.indices], dtype=np.float64)
+        speed_index[bounded] = np.asarray(velocity.indices, dtype=np.int64)
+        blocks = [config.projection_matrix, velocity.projection_matrix]
+        g_limits[bounded] = np.vstack([x for m in blocks if m is not None for x in (m, -m)])
+    root_nq = 7 if model.joints[1].nq == 7 else 0
+    root_nv = 6 if root_nq else 0
+    # the cost's constant diagonal: the posture task's weight on the joints (its Jacobian
+    # is the identity there) and the damping everywhere
+    diagonal = np.full(model.nv, tuning.DAMPING)
+    diagonal[root_nv:] += tuning.POSTURE_COST * tuning.POSTURE_COST
+    arrays = [trunk_weights, trunk_keep, *speeds.values(), *speed_index.values()]
+    arrays += [*g_limits.values(), *(x for pair in stance_weights.values() for x in pair)]
+    arrays += [x for pair in swing_weights.values() for x in pair]
+    for array in arrays:
+        _read_only(array)
+    terms = _CharacterTerms(
+        effectors=effector_geometries(character),
+        frame_ids={limb.name: int(limb.frame_id) for limb in character.limbs},
+        stance_weights=stance_weights,
+        swing_weights=swing_weights,
+        rigid_keep=rigid_keep,
+        trunk_weights=trunk_weights,
+        trunk_keep=trunk_keep,
+        config=_read_only(np.asarray(config.indices, dtype=np.int64)),
+        config_gain=float(config.config_limit_gain),
+        g_limits=g_limits,
+        speeds=speeds,
+        speed_index=speed_index,
+        root_nv=root_nv,
+        bounded=_read_only(np.arange(root_nq, model.nq)),
+        lower=_read_only(np.array(model.lowerPositionLimit[root_nq:], dtype=np.float64)),
+        upper=_read_only(np.array(model.upperPositionLimit[root_nq:], dtype=np.float64)),
+        diagonal_terms=_read_only(np.diag(diagonal)),
+    )
+    if len(_TERMS) >= 64:
+        _TERMS.clear()
+    _TERMS[id(character)] = (character, terms)
+    return terms
+
+
 class WholeBodyTracker:
     """One character in one scene; :meth:`step` moves a configuration one control step.
 
@@ -173,62 +278,31 @@ class WholeBodyTracker:
         model = character.model
         self.model = model
         self.data = model.createData()
-        self.effectors = effector_geometries(character)
+        terms = _character_terms(character)
+        self.effectors = terms.effectors
         self._root_frame = 1
-        self._frame_ids = {limb.name: int(limb.frame_id) for limb in character.limbs}
-        # per task the weights of its error's nonzero-cost rows (pink's FrameTask costs:
-        # position then orientation, in the frame), and those rows' indices
-        self._stance_weights: dict[str, tuple[FloatArray, IntArray]] = {}
-        self._swing_weights: dict[str, tuple[FloatArray, IntArray]] = {}
-        self._rigid_keep: dict[str, slice] = {}
-        for limb in character.limbs:
-            patch = limb.contact == "patch"
-            self._stance_weights[limb.name] = _nonzero(
-                tuning.STANCE_COST, tuning.STANCE_COST if patch else 0.0
-            )
-            self._swing_weights[limb.name] = _nonzero(
-                tuning.SWING_POSITION_COST, tuning.SWING_ORIENTATION_COST if patch else 0.0
-            )
-            self._rigid_keep[limb.name] = slice(0, 6) if patch else slice(0, 3)
-        self._trunk_weights, self._trunk_keep = _nonzero(
-            [0.0, 0.0, tuning.TRUNK_HEIGHT_COST], [tuning.TRUNK_COST, tuning.TRUNK_COST, 0.0]
-        )
+        self._frame_ids = terms.frame_ids
+        self._stance_weights = terms.stance_weights
+        self._swing_weights = terms.swing_weights
+        self._rigid_keep = terms.rigid_keep
+        self._trunk_weights, self._trunk_keep = terms.trunk_weights, terms.trunk_keep
         self.geometry_data = pin.GeometryData(character.motion_geometry)
         for request in self.geometry_data.distanceRequests:
             request.enable_signed_distance = True
         self.scene = SceneClearance(model, character.motion_geometry, scene_bvh, obstacles)
         self.self_clearance = SelfClearance(model, character.motion_geometry)
-        # joint position and speed limits as pink's ConfigurationLimit and VelocityLimit
-        # rows, per root bound (True: the root's speed bounded)
-        config = ConfigurationLimit(model)
-        self._config = np.asarray(config.indices, dtype=np.int64)
-        self._config_gain = float(config.config_limit_gain)
-        self._g_limits: dict[bool, FloatArray] = {}
-        self._speeds: dict[bool, FloatArray] = {}
-        self._speed_index: dict[bool, IntArray] = {}
-        for bounded in (False, True):
-            velocity = VelocityLimit(model, speed_limits(model, root_bounded=bounded))
-            self._speeds[bounded] = np.asarray(
-                velocity.velocity_limit[velocity.indices], dtype=np.float64
-            )
-            self._speed_index[bounded] = np.asarray(velocity.indices, dtype=np.int64)
-            blocks = [config.projection_matrix, velocity.projection_matrix]
-            self._g_limits[bounded] = np.vstack(
-                [x for m in blocks if m is not None for x in (m, -m)]
-            )
+        self._config = terms.config
+        self._config_gain = terms.config_gain
+        self._g_limits = terms.g_limits
+        self._speeds = terms.speeds
+        self._speed_index = terms.speed_index
         self.fallbacks = 0
         self._lift_off: dict[str, dict[int, float]] = {}
         self._trunk_cache: dict[bytes, FloatArray] = {}
-        root_nq = 7 if model.joints[1].nq == 7 else 0
-        self._root_nv = 6 if root_nq else 0
-        self._bounded = np.arange(root_nq, model.nq)
-        self._lower = np.asarray(model.lowerPositionLimit[root_nq:], dtype=np.float64)
-        self._upper = np.asarray(model.upperPositionLimit[root_nq:], dtype=np.float64)
-        # the cost's constant diagonal: the posture task's weight on the joints (its
-        # Jacobian is the identity there) and the damping everywhere
-        diagonal = np.full(model.nv, tuning.DAMPING)
-        diagonal[self._root_nv :] += tuning.POSTURE_COST * tuning.POSTURE_COST
-        self._diagonal_terms = np.diag(diagonal)
+        self._root_nv = terms.root_nv
+        self._bounded = terms.bounded
+        self._lower, self._upper = terms.lower, terms.upper
+        self._diagonal_terms = terms.diagonal_terms
         self.q = pin.neutral(model)
         # kinematics stamps: of the last objective, of the last shape placements
         self._stamp = 0
@@ -530,7 +604,7 @@ def _solve_daqp(
         bound = upper
     floor = np.full(len(bound), -1e30)
     floor[:n] = lower
-    sense = np.zeros(len(bound), dtype=ctypes.c_int)
+    sense = np.zeros(len(bound), dtype=_DAQP_SENSE)
     if equalities:
         sense[len(bound) - equalities :] = _DAQP_EQUALITY
     x, _, exitflag, _ = daqp.solve(hessian, linear, constraints, bound, floor, sense)
