@@ -168,6 +168,8 @@ class _Targets:
         self.tucks: dict[int, tuple[float, float]] = {}
         self.unguarded: set[int] = set()
         self._arcs: dict[tuple[int, float], Any] = {}
+        # per phase, its stance as (limb, placement (4, 4)) pairs, made once
+        self._stances: dict[int, tuple[tuple[str, FloatArray], ...]] = {}
 
     def phase_index(self, t: float) -> int:
         """The phase running at ``t`` (the later one at a boundary)."""
@@ -264,7 +266,10 @@ class _Targets:
         swing = None
         if arc is not None and phase.swing is not None:
             swing = (phase.swing.limb, np.asarray(arc(t), dtype=np.float64))
-        stance = tuple((c.limb, np.asarray(c.placement)) for c in phase.stance)
+        stance = self._stances.get(k)
+        if stance is None:
+            stance = tuple((c.limb, np.asarray(c.placement)) for c in phase.stance)
+            self._stances[k] = stance
         if phase.flight is None and not phase.fast_com:
             return StepTargets(
                 stance,

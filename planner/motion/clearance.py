@@ -321,10 +321,12 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
         securities = np.array([w[4] for w in witnesses])
         if not joint_placements:
             joint_placements = data.oMi.tolist()
-        frames = {j: joint_placements[j] for j in set(joints.tolist())}
-        rotations = np.array([frames[j].rotation for j in joints.tolist()])
-        origins = np.array([frames[j].translation for j in joints.tolist()])
-        points = np.einsum("rab,rb->ra", rotations, locals_) + origins
+        # each joint's placement read once (a pinocchio attribute costs a conversion)
+        joint_list = joints.tolist()
+        frames = {j: joint_placements[j].homogeneous for j in set(joint_list)}
+        placed = np.array([frames[j] for j in joint_list])
+        rotations = np.ascontiguousarray(placed[:, :3, :3])
+        points = np.einsum("rab,rb->ra", rotations, locals_) + placed[:, :3, 3]
         distances = np.einsum("ra,ra->r", normals, points - scene_points)
         keep = distances <= tuning.INFLUENCE_DISTANCE
         if not keep.any():
@@ -406,7 +408,7 @@ class PairBroadPhase:
         if len(self.pair_array) == 0:
             return []
         rot, trans = poses
-        world = np.einsum("gab,gkb->gka", rot, self.local_points)
+        world = np.matmul(self.local_points, rot.transpose(0, 2, 1))  # R p for each point
         world += trans[:, None, :]
         centres = world[:, 0]
         if self.last is not None:
@@ -417,7 +419,7 @@ class PairBroadPhase:
             self.odometer += np.sqrt(np.einsum("gab,gab->g", turned, turned)) * self.spheres
         self.last = (rot, centres)
         run = self.odometer[self.pair_array] - self.known_odometers
-        open_ = np.flatnonzero(self.known - run.sum(axis=1) <= margin)
+        open_ = np.flatnonzero(self.known - (run[:, 0] + run[:, 1]) <= margin)
         if len(open_) == 0:
             return []
         pairs = self.pair_array[open_]
@@ -428,7 +430,8 @@ class PairBroadPhase:
         done = open_[far]
         self.known[done] = gaps[far]
         self.known_odometers[done] = self.odometer[self.pair_array[done]]
-        return [int(k) for k in open_[~far]]
+        near: list[int] = open_[~far].tolist()
+        return near
 
     def remember(self, k: int, distance: float) -> None:
         """Pair ``k`` is at least ``distance`` m apart at the placements of the last

@@ -129,13 +129,16 @@ def speed_limits(model: Any, root_bounded: bool = False) -> FloatArray:
 
 def _nonzero(
     position: float | Sequence[float], orientation: float | Sequence[float]
-) -> tuple[FloatArray, IntArray]:
+) -> tuple[FloatArray, IntArray | slice]:
     """The nonzero weights of a frame task's six error rows (position then orientation
-    costs, each a scalar or (3,)) and their row indices: rows of cost 0 add nothing to the
-    QP."""
+    costs, each a scalar or (3,)) and their row indices (a slice when they are consecutive:
+    the same rows, without a copy): rows of cost 0 add nothing to the QP."""
     costs = np.concatenate([np.broadcast_to(position, 3), np.broadcast_to(orientation, 3)])
     keep = np.flatnonzero(costs)
-    return np.asarray(costs[keep], dtype=np.float64), keep
+    weights = np.asarray(costs[keep], dtype=np.float64)
+    if len(keep) and np.array_equal(keep, np.arange(keep[0], keep[0] + len(keep))):
+        return weights, slice(int(keep[0]), int(keep[0]) + len(keep))
+    return weights, keep
 
 
 @dataclass(frozen=True, slots=True)
@@ -167,11 +170,11 @@ class _CharacterTerms:
 
     effectors: dict[str, frozenset[int]]
     frame_ids: dict[str, int]
-    stance_weights: dict[str, tuple[FloatArray, IntArray]]
-    swing_weights: dict[str, tuple[FloatArray, IntArray]]
+    stance_weights: dict[str, tuple[FloatArray, IntArray | slice]]
+    swing_weights: dict[str, tuple[FloatArray, IntArray | slice]]
     rigid_keep: dict[str, slice]
     trunk_weights: FloatArray
-    trunk_keep: IntArray
+    trunk_keep: IntArray | slice
     config: IntArray
     config_gain: float
     g_limits: dict[bool, FloatArray]
@@ -179,8 +182,11 @@ class _CharacterTerms:
     speed_index: dict[bool, IntArray]
     root_nv: int
     bounded: IntArray
+    joints: slice
     lower: FloatArray
     upper: FloatArray
+    lower_limit: FloatArray
+    upper_limit: FloatArray
     diagonal_terms: FloatArray
 
 
@@ -200,8 +206,8 @@ def _character_terms(character: Character) -> _CharacterTerms:
     model = character.model
     # per task the weights of its error's nonzero-cost rows (pink's FrameTask costs:
     # position then orientation, in the frame), and those rows' indices
-    stance_weights: dict[str, tuple[FloatArray, IntArray]] = {}
-    swing_weights: dict[str, tuple[FloatArray, IntArray]] = {}
+    stance_weights: dict[str, tuple[FloatArray, IntArray | slice]] = {}
+    swing_weights: dict[str, tuple[FloatArray, IntArray | slice]] = {}
     rigid_keep: dict[str, slice] = {}
     for limb in character.limbs:
         patch = limb.contact == "patch"
@@ -235,7 +241,8 @@ def _character_terms(character: Character) -> _CharacterTerms:
     arrays += [*g_limits.values(), *(x for pair in stance_weights.values() for x in pair)]
     arrays += [x for pair in swing_weights.values() for x in pair]
     for array in arrays:
-        _read_only(array)
+        if isinstance(array, np.ndarray):
+            _read_only(array)
     terms = _CharacterTerms(
         effectors=effector_geometries(character),
         frame_ids={limb.name: int(limb.frame_id) for limb in character.limbs},
@@ -251,8 +258,11 @@ def _character_terms(character: Character) -> _CharacterTerms:
         speed_index=speed_index,
         root_nv=root_nv,
         bounded=_read_only(np.arange(root_nq, model.nq)),
+        joints=slice(root_nq, None),
         lower=_read_only(np.array(model.lowerPositionLimit[root_nq:], dtype=np.float64)),
         upper=_read_only(np.array(model.upperPositionLimit[root_nq:], dtype=np.float64)),
+        lower_limit=_read_only(np.array(model.lowerPositionLimit, dtype=np.float64)),
+        upper_limit=_read_only(np.array(model.upperPositionLimit, dtype=np.float64)),
         diagonal_terms=_read_only(np.diag(diagonal)),
     )
     if len(_TERMS) >= 64:
@@ -301,7 +311,9 @@ class WholeBodyTracker:
         self._trunk_cache: dict[bytes, FloatArray] = {}
         self._root_nv = terms.root_nv
         self._bounded = terms.bounded
+        self._joints = terms.joints
         self._lower, self._upper = terms.lower, terms.upper
+        self._lower_limit, self._upper_limit = terms.lower_limit, terms.upper_limit
         self._diagonal_terms = terms.diagonal_terms
         self.q = pin.neutral(model)
         # kinematics stamps: of the last objective, of the last shape placements
@@ -374,7 +386,8 @@ class WholeBodyTracker:
         ``FAST_SUBSTEPS``): the gentle trunk and posture pulls, which are fractions per step,
         are scaled so that they converge as fast per second as with nominal steps."""
         q = np.array(q, dtype=np.float64)
-        q[self._bounded] = np.minimum(np.maximum(q[self._bounded], self._lower), self._upper)
+        joints = self._joints
+        q[joints] = np.minimum(np.maximum(q[joints], self._lower), self._upper)
         if targets.exact_com:
             q = self._onto_com(q, targets.com)
         qp = self.objective(q, targets, share)
@@ -445,7 +458,7 @@ class WholeBodyTracker:
         # Each joint is pulled at most POSTURE_MAX_ERROR toward its posture per step: summed
         # over thirty joints, a far posture would otherwise outweigh the stance contacts
         reach = tuning.POSTURE_MAX_ERROR * share
-        joints = slice(self._bounded[0], None)
+        joints = self._joints
         aim = q.copy()
         aim[joints] = q[joints] + np.minimum(np.maximum(posture[joints] - q[joints], -reach), reach)
         gain = 1.0 - (1.0 - tuning.POSTURE_GAIN) ** share
@@ -463,7 +476,7 @@ class WholeBodyTracker:
         is the twist, in the frame, from the frame's pose to the target pose ``rotation``
         (3, 3), ``position`` (3,) m in the world)."""
         here = self.data.oMf[frame]
-        target = pin.SE3(np.array(rotation), np.array(position))
+        target = pin.SE3(rotation, position)  # copies them
         error = pin.log6(here.actInv(target)).vector
         local = pin.getFrameJacobian(self.model, self.data, frame, pin.LOCAL)
         jac = -pin.Jlog6(target.actInv(here)) @ local
@@ -479,8 +492,8 @@ class WholeBodyTracker:
         gain = self._config_gain
         h_config = np.concatenate(
             [
-                gain * pin.difference(self.model, q, self.model.upperPositionLimit)[self._config],
-                -gain * pin.difference(self.model, q, self.model.lowerPositionLimit)[self._config],
+                gain * pin.difference(self.model, q, self._upper_limit)[self._config],
+                -gain * pin.difference(self.model, q, self._lower_limit)[self._config],
             ]
         )
         speeds = self._speeds[root_bounded]
@@ -504,9 +517,9 @@ class WholeBodyTracker:
         upper[speed] = step
         lower[speed] = -step
         config = self._config
-        reach = gain * pin.difference(model, q, model.upperPositionLimit)[config]
+        reach = gain * pin.difference(model, q, self._upper_limit)[config]
         upper[config] = np.minimum(upper[config], reach)
-        reach = gain * pin.difference(model, q, model.lowerPositionLimit)[config]
+        reach = gain * pin.difference(model, q, self._lower_limit)[config]
         lower[config] = np.maximum(lower[config], reach)
         return lower, upper
 

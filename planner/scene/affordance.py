@@ -173,20 +173,19 @@ class Surface:
         holes), and the nearest boundary points (p, 2) in plane coordinates."""
         c = np.asarray(coords, dtype=np.float64).reshape(-1, 2)
         distance, segment, t = self._boundary_distance(c)
-        starts, ends = self._segments_3d()
-        a, b = self.to_plane(starts)[segment], self.to_plane(ends)[segment]
+        _, _, starts_uv, ends_uv = _boundary_segments(self)
+        a, b = starts_uv[segment], ends_uv[segment]
         return distance, a + t[:, None] * (b - a)
 
     def _segments_3d(self) -> tuple[FloatArray, FloatArray]:
-        starts = np.concatenate(self.polygons)
-        ends = np.concatenate([np.roll(p, -1, axis=0) for p in self.polygons])
+        starts, ends, _, _ = _boundary_segments(self)
         return starts, ends
 
     def _boundary_distance(
         self, coords: FloatArray
     ) -> tuple[FloatArray, NDArray[np.int64], FloatArray]:
-        starts, ends = self._segments_3d()
-        return g2.closest_on_segments(coords, self.to_plane(starts), self.to_plane(ends))
+        _, _, starts_uv, ends_uv = _boundary_segments(self)
+        return g2.closest_on_segments(coords, starts_uv, ends_uv)
 
     def _lift(self, coords: FloatArray) -> FloatArray:
         """Points on the mesh above/below (q, 2) plane coordinates lying inside the surface."""
@@ -212,6 +211,29 @@ class Surface:
             w = np.stack([wa[rows, best], wb[rows, best], wc[rows, best]], axis=1)
             result[begin : begin + len(block)] = np.einsum("qk,qkj->qj", w, tri[best])
         return result
+
+
+_SEGMENTS: dict[int, tuple[Surface, tuple[FloatArray, FloatArray, FloatArray, FloatArray]]] = {}
+
+
+def _boundary_segments(
+    surface: Surface,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """The boundary segments of ``surface``'s polygons: starts and ends (s, 3) in the world
+    and the same (s, 2) in plane coordinates; computed once per surface (read-only), as
+    contact placement asks for them again and again."""
+    hit = _SEGMENTS.get(id(surface))
+    if hit is not None and hit[0] is surface:
+        return hit[1]
+    starts = np.concatenate(surface.polygons)
+    ends = np.concatenate([np.roll(p, -1, axis=0) for p in surface.polygons])
+    out = (starts, ends, surface.to_plane(starts), surface.to_plane(ends))
+    for array in out:
+        array.flags.writeable = False
+    if len(_SEGMENTS) > 4096:
+        _SEGMENTS.clear()
+    _SEGMENTS[id(surface)] = (surface, out)
+    return out
 
 
 def _triangle_geometry(
