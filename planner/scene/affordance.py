@@ -143,7 +143,7 @@ class Surface:
         margin : metres; if positive, points closer than this to the boundary are outside.
         """
         coords = self.to_plane(points)
-        inside = g2.winding_numbers(coords, self.polygons_2d()) != 0
+        inside = _winding_numbers(self, coords) != 0
         if margin > 0.0 and np.any(inside):
             distance, _, _ = self._boundary_distance(coords[inside])
             inside[np.flatnonzero(inside)[distance < margin]] = False
@@ -157,7 +157,7 @@ class Surface:
         """
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         coords = self.to_plane(pts)
-        inside = g2.winding_numbers(coords, self.polygons_2d()) != 0
+        inside = _winding_numbers(self, coords) != 0
         out = np.zeros_like(pts)
         if np.any(inside):
             out[inside] = self._lift(coords[inside])
@@ -234,6 +234,27 @@ def _boundary_segments(
         _SEGMENTS.clear()
     _SEGMENTS[id(surface)] = (surface, out)
     return out
+
+
+_LOOP_EDGES: dict[int, tuple[Surface, tuple[FloatArray, FloatArray] | None]] = {}
+
+
+def _winding_numbers(surface: Surface, coords: FloatArray) -> NDArray[np.int64]:
+    """:func:`geometry2d.winding_numbers` of (p, 2) plane coordinates about ``surface``'s
+    polygons, their edges made once per surface (read-only)."""
+    hit = _LOOP_EDGES.get(id(surface))
+    if hit is None or hit[0] is not surface:
+        loops = surface.polygons_2d()
+        edges = g2.loop_edges(loops) if loops else None
+        for array in edges or ():
+            array.flags.writeable = False
+        if len(_LOOP_EDGES) > 4096:
+            _LOOP_EDGES.clear()
+        hit = (surface, edges)
+        _LOOP_EDGES[id(surface)] = hit
+    if hit[1] is None:
+        return np.zeros(len(np.asarray(coords).reshape(-1, 2)), dtype=np.int64)
+    return g2.edge_winding_numbers(coords, *hit[1])
 
 
 def _triangle_geometry(

@@ -1,17 +1,19 @@
 """A planning process keeps what it computed for one Twister step for the next (issue 15:
-polytopes of contact sets, surfaces' boundary segments, a character's tracker terms): the
-same request gives the same answer whatever ran before it, caches cold or warm."""
+polytopes of contact sets, surfaces' boundary segments and footprints, the reachability
+checker's sub-worlds, a character's tracker terms): the same request gives the same answer
+whatever ran before it, caches cold or warm."""
 
 from __future__ import annotations
 
 import json
 import time
+from collections import OrderedDict
 from collections.abc import Iterator
 from typing import Any
 
 import pytest
 
-from planner.contact import context
+from planner.contact import context, reachability, standing
 from planner.motion import clearance, tracker
 from planner.scene import affordance
 from service import compute, workers
@@ -53,7 +55,10 @@ def _answer(request: dict[str, Any]) -> dict[str, Any]:
 def _cold(monkeypatch: pytest.MonkeyPatch) -> None:
     """Empty every per-process cache the Twister step fills."""
     monkeypatch.setattr(context, "_SHARED", {})
+    monkeypatch.setattr(reachability, "_SUB_WORLDS", OrderedDict())
+    monkeypatch.setattr(standing, "_FOOTPRINTS", {})
     monkeypatch.setattr(affordance, "_SEGMENTS", {})
+    monkeypatch.setattr(affordance, "_LOOP_EDGES", {})
     monkeypatch.setattr(tracker, "_TERMS", {})
     monkeypatch.setattr(clearance, "_PAIR_SHAPES", {})
 
