@@ -30,7 +30,12 @@ import pinocchio as pin
 from numpy.typing import NDArray
 from pink.limits import Limit
 
-from planner.character.collision import bounding_segment, segment_distances
+from planner.character.collision import (
+    FEW_SEGMENTS,
+    bounding_segment,
+    few_segment_distances,
+    segment_distances,
+)
 from planner.motion import tuning
 
 FloatArray = NDArray[np.float64]
@@ -424,7 +429,11 @@ class PairBroadPhase:
             return []
         pairs = self.pair_array[open_]
         first, second = world[pairs[:, 0]], world[pairs[:, 1]]
-        gaps = segment_distances(first[:, 1], first[:, 2], second[:, 1], second[:, 2])
+        segments = (first[:, 1], first[:, 2], second[:, 1], second[:, 2])
+        if len(open_) <= FEW_SEGMENTS:
+            gaps = few_segment_distances(*segments)
+        else:
+            gaps = segment_distances(*segments)
         gaps -= self.radii_sum[open_]
         far = gaps > margin
         done = open_[far]
