@@ -202,9 +202,9 @@ class SceneDistances:
         self.rotations, translations = poses
         self.centres = np.einsum("gab,gb->ga", self.rotations, self.local_centres) + translations
         moved = self.centres - self.measured_centres
-        shift = np.sqrt((moved * moved).sum(axis=1))
+        shift = np.sqrt(np.einsum("ga,ga->g", moved, moved))
         turned = self.rotations - self.measured_rotations
-        turn = np.sqrt((turned * turned).sum(axis=(1, 2)))
+        turn = np.sqrt(np.einsum("gab,gab->g", turned, turned))
         return np.asarray(self.measured - shift - turn * self.radii > threshold)
 
     def remember(self, i: int, distance: float) -> None:

@@ -30,6 +30,7 @@ identity) given as bounds on dq.
 from __future__ import annotations
 
 import ctypes
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -155,7 +156,7 @@ class StepQP:
 def _saturated(here: FloatArray, target: FloatArray, reach: float) -> FloatArray:
     """``target`` (3,) moved toward ``here`` (3,) to at most ``reach`` m from it."""
     gap = np.asarray(target, dtype=np.float64) - here
-    norm = float(np.linalg.norm(gap))
+    norm = math.sqrt(float(gap @ gap))  # np.linalg.norm's own arithmetic, without its cost
     if norm <= reach:
         return np.array(target, dtype=np.float64)
     return np.asarray(here + gap * (reach / norm), dtype=np.float64)
@@ -308,7 +309,7 @@ class WholeBodyTracker:
         self._speed_index = terms.speed_index
         self.fallbacks = 0
         self._lift_off: dict[str, dict[int, float]] = {}
-        self._trunk_cache: dict[bytes, FloatArray] = {}
+        self._trunk_cache: dict[tuple[bool, bytes], FloatArray] = {}
         self._root_nv = terms.root_nv
         self._bounded = terms.bounded
         self._joints = terms.joints
@@ -328,19 +329,17 @@ class WholeBodyTracker:
         ``level``, its yaw, and its pitch only for a character whose trunk may pitch (a
         hexapod on a slope), never a roll; otherwise its own orientation. Memoised per
         posture (a phase keeps its posture for many steps)."""
-        if not level:
-            rotation = pin.Quaternion(posture[3:7]).toRotationMatrix()
-            return np.asarray(rotation, dtype=np.float64)
-        key = posture[3:7].tobytes()
+        key = (level, posture[3:7].tobytes())
         cached = self._trunk_cache.get(key)
         if cached is None:
             rotation = pin.Quaternion(posture[3:7]).toRotationMatrix()
-            yaw, pitch, _ = Rotation.from_matrix(rotation).as_euler("ZYX")
-            if self.character.max_pitch <= tuning.LEVEL_TRUNK_PITCH:
-                pitch = 0.0
-            cached = np.asarray(
-                Rotation.from_euler("ZY", [yaw, pitch]).as_matrix(), dtype=np.float64
-            )
+            if level:
+                yaw, pitch, _ = Rotation.from_matrix(rotation).as_euler("ZYX")
+                if self.character.max_pitch <= tuning.LEVEL_TRUNK_PITCH:
+                    pitch = 0.0
+                rotation = Rotation.from_euler("ZY", [yaw, pitch]).as_matrix()
+            cached = np.asarray(rotation, dtype=np.float64)
+            cached.flags.writeable = False
             if len(self._trunk_cache) > 4096:
                 self._trunk_cache.clear()
             self._trunk_cache[key] = cached
@@ -451,7 +450,7 @@ class WholeBodyTracker:
         jac, err = self._frame_error(self._root_frame, trunk, posture[:3])
         rows.append(self._trunk_weights[:, None] * jac[self._trunk_keep])
         errors.append(self._trunk_weights * (-gain * err[self._trunk_keep]))
-        stacked = np.vstack(rows)
+        stacked = np.concatenate(rows)  # 2-D blocks: vstack's result, without its checks
         hessian = stacked.T @ stacked
         linear = -(np.concatenate(errors) @ stacked)
         # the posture task's Jacobian is the identity on the joints: its terms are diagonal.
