@@ -310,6 +310,7 @@ class WholeBodyTracker:
         self.fallbacks = 0
         self._lift_off: dict[str, dict[int, float]] = {}
         self._trunk_cache: dict[tuple[bool, bytes], FloatArray] = {}
+        self._held: dict[int, tuple[FloatArray, Any]] = {}
         self._root_nv = terms.root_nv
         self._bounded = terms.bounded
         self._joints = terms.joints
@@ -418,7 +419,7 @@ class WholeBodyTracker:
         skipped: set[int] = set()
         held: dict[str, tuple[FloatArray, FloatArray]] = {}
         for limb, pose in targets.stance:
-            jac, err = self._frame_error(self._frame_ids[limb], pose[:3, :3], pose[:3, 3])
+            jac, err = self._frame_error(self._frame_ids[limb], self._held_target(pose))
             held[limb] = (jac, err)
             weights, keep = self._stance_weights[limb]
             rows.append(weights[:, None] * jac[keep])
@@ -429,7 +430,7 @@ class WholeBodyTracker:
         for limb, pose in moving:
             frame = self._frame_ids[limb]
             goal = _saturated(data.oMf[frame].translation, pose[:3, 3], tuning.SWING_MAX_ERROR)
-            jac, err = self._frame_error(frame, pose[:3, :3], goal)
+            jac, err = self._frame_error(frame, pin.SE3(pose[:3, :3], goal))
             weights, keep = self._swing_weights[limb]
             rows.append(weights[:, None] * jac[keep])
             errors.append(weights * (-tuning.TASK_GAIN * err[keep]))
@@ -447,7 +448,7 @@ class WholeBodyTracker:
         posture = np.asarray(targets.posture, dtype=np.float64)
         trunk = self.trunk_rotation(posture, targets.level_trunk)
         gain = 1.0 - (1.0 - tuning.TRUNK_GAIN) ** share
-        jac, err = self._frame_error(self._root_frame, trunk, posture[:3])
+        jac, err = self._frame_error(self._root_frame, pin.SE3(trunk, posture[:3]))
         rows.append(self._trunk_weights[:, None] * jac[self._trunk_keep])
         errors.append(self._trunk_weights * (-gain * err[self._trunk_keep]))
         stacked = np.concatenate(rows)  # 2-D blocks: vstack's result, without its checks
@@ -468,14 +469,22 @@ class WholeBodyTracker:
         self.scene.set_phase(frozenset(skipped), light)
         return StepQP(hessian, linear, held)
 
-    def _frame_error(
-        self, frame: int, rotation: FloatArray, position: FloatArray
-    ) -> tuple[FloatArray, FloatArray]:
+    def _held_target(self, pose: FloatArray) -> Any:
+        """``pose`` (4, 4) as a pin.SE3, made once per stance placement (a phase holds the
+        same contact placements for all its steps)."""
+        hit = self._held.get(id(pose))
+        if hit is None or hit[0] is not pose:
+            if len(self._held) > 256:
+                self._held.clear()
+            hit = (pose, pin.SE3(pose[:3, :3], pose[:3, 3]))
+            self._held[id(pose)] = hit
+        return hit[1]
+
+    def _frame_error(self, frame: int, target: Any) -> tuple[FloatArray, FloatArray]:
         """Jacobian (6, nv) and error (6,) of a frame task (pink's ``FrameTask``: the error
-        is the twist, in the frame, from the frame's pose to the target pose ``rotation``
-        (3, 3), ``position`` (3,) m in the world)."""
+        is the twist, in the frame, from the frame's pose to the ``target`` pose (pin.SE3,
+        world))."""
         here = self.data.oMf[frame]
-        target = pin.SE3(rotation, position)  # copies them
         error = pin.log6(here.actInv(target)).vector
         local = pin.getFrameJacobian(self.model, self.data, frame, pin.LOCAL)
         jac = -pin.Jlog6(target.actInv(here)) @ local
