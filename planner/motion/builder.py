@@ -10,6 +10,7 @@ its wall-clock cap) cut the motion short.
 
 from __future__ import annotations
 
+import bisect
 import itertools
 import math
 from collections.abc import Sequence
@@ -164,16 +165,18 @@ class _Targets:
         self.character = character
         self.spec = spec
         self.breaks = np.array([p.t1 for p in spec.phases])
+        self._break_list = [float(p.t1) for p in spec.phases]
         self.lifts: dict[int, float] = {}
         self.tucks: dict[int, tuple[float, float]] = {}
         self.unguarded: set[int] = set()
         self._arcs: dict[tuple[int, float], Any] = {}
+        self._coms: dict[float, FloatArray] = {}
         # per phase, its stance as (limb, placement (4, 4)) pairs, made once
         self._stances: dict[int, tuple[tuple[str, FloatArray], ...]] = {}
 
     def phase_index(self, t: float) -> int:
         """The phase running at ``t`` (the later one at a boundary)."""
-        k = int(np.searchsorted(self.breaks, t, side="right"))
+        k = bisect.bisect_right(self._break_list, t)  # np.searchsorted's, in plain floats
         return min(k, len(self.spec.phases) - 1)
 
     def arc(self, k: int) -> Any:
@@ -209,9 +212,17 @@ class _Targets:
         return tuple(c.limb for c in self.spec.phases[k - 1].stance if c.limb not in held)
 
     def com(self, t: float) -> FloatArray:
-        """(3,) m, the COM curve at ``t`` (clamped to its span)."""
-        curve = self.spec.com
-        return np.asarray(curve(min(max(t, curve.t0), curve.t1)), dtype=np.float64)
+        """(3,) m, the COM curve at ``t`` (clamped to its span), read-only: memoised per
+        time (a keyframe's time is often its last control step's, and the blend asks again)."""
+        hit = self._coms.get(t)
+        if hit is None:
+            curve = self.spec.com
+            hit = np.array(curve(min(max(t, curve.t0), curve.t1)), dtype=np.float64)
+            hit.flags.writeable = False
+            if len(self._coms) > 4096:
+                self._coms.clear()
+            self._coms[t] = hit
+        return hit
 
     @staticmethod
     def flight_blend(phase: MotionPhase, t: float) -> tuple[float, float]:
