@@ -180,10 +180,12 @@ def make_context(
     *,
     world: CollisionWorld | None = None,
     cache: dict[Any, Any] | None = None,
+    pin_data: Any = None,
 ) -> ContactContext:
     """A context over ``scene`` (or ``world``) with ``obstacles`` ((shape, (4, 4) world pose)
     pairs) added. ``cache`` shares memoised contact data with another context of the same
-    scene, character and params."""
+    scene, character and params. ``pin_data``: the context's pin.Data, lent by the caller
+    for the context's life (default: its own)."""
     p = params or ContactParams()
     base = scene.collision if world is None else world
     full = base.with_obstacles(list(obstacles)) if obstacles else base
@@ -203,7 +205,7 @@ def make_context(
         p,
         surfaces,
         com_local,
-        character.model.createData(),
+        character.model.createData() if pin_data is None else pin_data,
         pin.GeometryData(character.geometry),
         base,
         tuple(obstacles),

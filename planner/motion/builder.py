@@ -22,7 +22,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from planner.character import Character
-from planner.kinematics import swing_trajectory
+from planner.kinematics import borrowed_data, swing_trajectory
 from planner.motion import tuning
 from planner.motion.checker import KeyframeCheck, KeyframeChecker
 from planner.motion.spec import MotionPhase, MotionSpec
@@ -488,7 +488,32 @@ def build_motion(
     p must be the ones it was built with) and tracking goes on from the last of them, the
     rest of the keyframes spaced evenly from there; its QP fallbacks are counted in (at
     most)."""
-    tracker = WholeBodyTracker(character, scene_bvh, obstacles)
+    with borrowed_data(character.model) as data:
+        return _build_motion(
+            character,
+            scene_bvh,
+            spec,
+            obstacles=obstacles,
+            until=until,
+            abandon_unclean=abandon_unclean,
+            resume=resume,
+            data=data,
+        )
+
+
+def _build_motion(
+    character: Character,
+    scene_bvh: Any,
+    spec: MotionSpec,
+    *,
+    obstacles: Sequence[tuple[Any, Any]] = (),
+    until: Termination = never,
+    abandon_unclean: bool = False,
+    resume: tuple[BuiltMotion, int] | None = None,
+    data: Any = None,
+) -> BuiltMotion:
+    """:func:`build_motion` with its tracker's kinematics in ``data`` (a pin.Data)."""
+    tracker = WholeBodyTracker(character, scene_bvh, obstacles, data=data)
     checker = KeyframeChecker(character, scene_bvh, obstacles, tracker)
     targets = _Targets(character, spec)
     kept = _Segment([], [], [], np.array(spec.q_start, dtype=np.float64), 0.0)

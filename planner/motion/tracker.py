@@ -284,11 +284,14 @@ class WholeBodyTracker:
         character: Character,
         scene_bvh: Any,
         obstacles: Sequence[tuple[Any, Any]] = (),
+        data: Any = None,
     ) -> None:
         self.character = character
         model = character.model
         self.model = model
-        self.data = model.createData()
+        # pin.Data for its kinematics: ``data`` (lent by the caller for the tracker's life)
+        # or its own
+        self.data = model.createData() if data is None else data
         terms = _character_terms(character)
         self.effectors = terms.effectors
         self._root_frame = 1

@@ -1,11 +1,12 @@
 """A planning process keeps what it computed for one Twister step for the next (issue 15:
 polytopes of contact sets, surfaces' boundary segments and footprints, the reachability
-checker's sub-worlds, a character's tracker terms): the same request gives the same answer
-whatever ran before it, caches cold or warm."""
+checker's sub-worlds, a character's tracker terms, idle pin.Data): the same request gives
+the same answer whatever ran before it, caches cold or warm."""
 
 from __future__ import annotations
 
 import json
+import threading
 import time
 from collections import OrderedDict
 from collections.abc import Iterator
@@ -13,7 +14,10 @@ from typing import Any
 
 import pytest
 
+from planner.character import get_character
 from planner.contact import context, reachability, standing
+from planner.kinematics import borrowed_data
+from planner.kinematics import model as kinematics_model
 from planner.motion import clearance, tracker
 from planner.scene import affordance
 from service import compute, workers
@@ -55,6 +59,7 @@ def _answer(request: dict[str, Any]) -> dict[str, Any]:
 def _cold(monkeypatch: pytest.MonkeyPatch) -> None:
     """Empty every per-process cache the Twister step fills."""
     monkeypatch.setattr(context, "_SHARED", {})
+    monkeypatch.setattr(kinematics_model, "_POOL", threading.local())
     monkeypatch.setattr(reachability, "_SUB_WORLDS", OrderedDict())
     monkeypatch.setattr(standing, "_FOOTPRINTS", {})
     monkeypatch.setattr(affordance, "_SEGMENTS", {})
@@ -82,3 +87,13 @@ def test_same_answers_in_either_order(monkeypatch: pytest.MonkeyPatch) -> None:
     for ahead, behind in zip(forward, reversed(backward), strict=True):
         assert ahead == behind
     assert all(a["status"] == "SOLVED" for a in forward), [a["failure"] for a in forward]
+
+
+def test_borrowed_data_is_the_blocks_alone() -> None:
+    """Nested borrows get distinct pin.Data; one given back is lent again."""
+    model = get_character("quadruped").model
+    with borrowed_data(model) as outer:
+        with borrowed_data(model) as inner:
+            assert inner is not outer
+        with borrowed_data(model) as again:
+            assert again is inner
