@@ -1,23 +1,25 @@
 """Twister step benchmark: compute time of one step, in process, as a planning worker runs it.
 
-Usage: ``python bench/step.py [--games 2] [--length 8] [--character quadruped ...]
-[--record FILE | --compare FILE]``.
+Usage: ``python bench/step.py [--games 2] [--length 8] [--seed 0] [--repeats 3]
+[--character quadruped humanoid hexapod] [--record FILE | --compare FILE]``.
 
 Plays Twister games like ``clients/load_test.py`` does (issue 15): each game starts with the
-live fixture's move (``tests/live_fixtures.py`` LIVE_STEP: stand at the origin, break a
-limb; the humanoid and hexapod stand and break their first limb), then ``auto`` moves that pass
-the previous answer's state back, a new game after ``--length`` moves or a refused one; seeds
-from a fixed stream. Each request goes through ``service.compute.run_ready`` (what a
-planning process runs for ``POST /v1/twister/step``: validation, the step, conversion, the
-result store, serialisation) after one warm-up request per character (the registry loads
+live fixture's move (``tests/live_fixtures.py`` LIVE_STEP: the quadruped stands at the
+origin of the ``twister`` mat and breaks a limb; the humanoid and hexapod stand there and make
+an ``auto`` move), then ``auto`` moves that pass the previous answer's state back, a new game
+after ``--length`` moves or a refused one; seeds from a fixed stream (``--seed``). Each
+request goes through ``service.compute.run_ready`` (what a planning process runs for
+``POST /v1/twister/step``: validation, the step, conversion, the result store,
+serialisation) after one warm-up request per character (the registry loads
 characters and scenes on first use). Prints the median and p90 of the compute time per
 character and over all steps (each step run ``--repeats`` times, its fastest kept: other
 processes on the machine only ever add time); asserts nothing. Target (issue 15): 40
 steps/s on 2 cores, so <= 50 ms per step.
 
 ``--record FILE`` writes every request and its answer (timings removed) to FILE;
-``--compare FILE`` replays FILE's requests and prints the largest difference between the
-answers (numbers compared with a tolerance, everything else exactly).
+``--compare FILE`` replays FILE's requests (timed the same way) and prints the largest
+absolute difference between the recorded and the new answers' numbers (inf where anything
+else differs: a status, a contact, a list's length).
 """
 
 from __future__ import annotations
