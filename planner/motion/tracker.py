@@ -319,6 +319,7 @@ class WholeBodyTracker:
         self._joints = terms.joints
         self._lower, self._upper = terms.lower, terms.upper
         self._lower_limit, self._upper_limit = terms.lower_limit, terms.upper_limit
+        self._unbounded = np.full(model.nv, 1e30)  # the bound of an unbounded dq
         self._diagonal_terms = terms.diagonal_terms
         self.q = pin.neutral(model)
         # kinematics stamps: of the last objective, of the last shape placements
@@ -522,8 +523,8 @@ class WholeBodyTracker:
         q, model = self.q, self.model
         gain = self._config_gain
         step = dt * self._speeds[root_bounded]
-        upper = np.full(model.nv, 1e30)
-        lower = np.full(model.nv, -1e30)
+        upper = self._unbounded.copy()
+        lower = -upper
         speed = self._speed_index[root_bounded]
         upper[speed] = step
         lower[speed] = -step
@@ -621,7 +622,7 @@ def _solve_daqp(
     G x = h, by daqp; None when it finds none."""
     n = len(linear)
     if rows:
-        constraints = np.vstack([g for g, _ in rows])
+        constraints = np.concatenate([g for g, _ in rows])  # 2-D blocks, as vstack
         bound = np.concatenate([upper, *(h for _, h in rows)])
     else:
         constraints = np.zeros((0, n))
