@@ -26,6 +26,7 @@ from planner.contact.one_step import StepAction, twister_step
 from planner.contact.planner import Endpoint, PlanOptions, plan_contact_motion
 from planner.contact.sequence import SequenceParams
 from planner.contact.standing import standing_state
+from planner.kinematics import borrowed_data
 from planner.motion.sequence import Timing
 from planner.poses import normalize_quaternion, pose_matrix, quaternion_to_matrix
 from planner.scene import Scene
@@ -170,8 +171,20 @@ def run_twister_step(request_json: str, seed: int, deadline: float | None = None
     ``auto`` tries the limbs in the seed's order; ``deadline`` (monotonic s; None: the
     budget from now) is only a wall-clock cap on it (``report.clock_cap_hit``)."""
     request = schemas.TwisterStepRequest.model_validate_json(request_json)
-    cap = Deadline(budget_left(deadline, request.time_budget_s))
     entry = character_entry(request.character)
+    with borrowed_data(entry.character.model) as pin_data:  # the step's context's
+        return _twister_step(request, entry, seed, deadline, pin_data)
+
+
+def _twister_step(
+    request: schemas.TwisterStepRequest,
+    entry: CharacterEntry,
+    seed: int,
+    deadline: float | None,
+    pin_data: Any,
+) -> dict[str, Any]:
+    """:func:`run_twister_step` with the request read and its context's pin.Data lent."""
+    cap = Deadline(budget_left(deadline, request.time_budget_s))
     scene = scene_by_id(request.scene)
     character, data = entry.character, entry.data
     rng = np.random.default_rng(seed)
@@ -193,7 +206,7 @@ def run_twister_step(request_json: str, seed: int, deadline: float | None = None
         for index, surface in enumerate(request.surfaces or ()):
             if surface >= surface_count:
                 raise invalid(f"scene has {surface_count} surfaces", f"surfaces.{index}")
-        ctx = make_context(scene, character, data, params, obstacles=obstacles)
+        ctx = make_context(scene, character, data, params, obstacles=obstacles, pin_data=pin_data)
         if request.state is not None:
             q, contacts = convert.state_request(character, request.state, "state")
             made = state_from_configuration(ctx, q, contacts)

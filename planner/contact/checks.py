@@ -96,7 +96,7 @@ def phase_of(ctx: ContactContext, contacts: Sequence[LimbContact]) -> ContactPha
             [Contact(c.points, c.normal, c.mu) for c in contacts], float(ctx.character.mass)
         )
 
-    phase: ContactPhase = ctx.cached(("phase", contacts_key(contacts)), make)
+    phase: ContactPhase = ctx.shared(("phase", contacts_key(contacts)), make)
     return phase
 
 
@@ -114,7 +114,7 @@ def kinematics_of(ctx: ContactContext, contacts: Sequence[LimbContact]) -> Halfs
         )
 
     key = ("kin", tuple((c.limb, c.placement.tobytes()) for c in contacts))
-    out: Halfspaces = ctx.cached(key, make)
+    out: Halfspaces = ctx.shared(key, make)
     return out
 
 
@@ -129,7 +129,8 @@ def shrunk_equilibrium(
         norms = np.linalg.norm(eq.A, axis=1)
         return Halfspaces(eq.A, eq.b - depth * ctx.params.com_shrink * norms)
 
-    out: Halfspaces = ctx.cached(("shrunk", depth, contacts_key(contacts)), make)
+    key = ("shrunk", depth, ctx.params.com_shrink, contacts_key(contacts))
+    out: Halfspaces = ctx.shared(key, make)
     return out
 
 

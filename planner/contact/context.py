@@ -26,6 +26,10 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 Obstacle = tuple[Box | Capsule, FloatArray]
 _CACHE_SIZE = 512
+# values shared by every context of this process (see ContactContext.shared): key ->
+# (character, offline data, value)
+_SHARED: dict[Any, tuple[Character, OfflineData, Any]] = {}
+_SHARED_SIZE = 2048
 
 
 class FailureReason(enum.Enum):
@@ -125,6 +129,22 @@ class ContactContext:
             self.cache[key] = hit
         return hit
 
+    def shared(self, key: Any, make: Callable[[], Any]) -> Any:
+        """Memoise ``make()`` under ``key`` for every context of this process with the same
+        character and offline data (bounded; cleared when full). Only for a value that is a
+        function of ``key``, the character and its offline data alone (never of the scene,
+        the obstacles, the request or a rounded key), so that no answer depends on which
+        request came before it: a Twister game asks for the same contact sets again."""
+        full = (id(self.character), id(self.data), key)
+        hit = _SHARED.get(full)
+        if hit is not None and hit[0] is self.character and hit[1] is self.data:
+            return hit[2]
+        value = make()
+        if len(_SHARED) >= _SHARED_SIZE:
+            _SHARED.clear()
+        _SHARED[full] = (self.character, self.data, value)
+        return value
+
     @property
     def model(self) -> Any:
         """The character's Pinocchio model."""
@@ -160,10 +180,12 @@ def make_context(
     *,
     world: CollisionWorld | None = None,
     cache: dict[Any, Any] | None = None,
+    pin_data: Any = None,
 ) -> ContactContext:
     """A context over ``scene`` (or ``world``) with ``obstacles`` ((shape, (4, 4) world pose)
     pairs) added. ``cache`` shares memoised contact data with another context of the same
-    scene, character and params."""
+    scene, character and params. ``pin_data``: the context's pin.Data, lent by the caller
+    for the context's life (default: its own)."""
     p = params or ContactParams()
     base = scene.collision if world is None else world
     full = base.with_obstacles(list(obstacles)) if obstacles else base
@@ -183,7 +205,7 @@ def make_context(
         p,
         surfaces,
         com_local,
-        character.model.createData(),
+        character.model.createData() if pin_data is None else pin_data,
         pin.GeometryData(character.geometry),
         base,
         tuple(obstacles),

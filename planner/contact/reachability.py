@@ -57,7 +57,27 @@ def reference_offsets(character: Character) -> dict[str, FloatArray]:
     return out
 
 
+_SUB_WORLDS: OrderedDict[tuple[int, frozenset[SurfaceKind]], tuple[Scene, CollisionWorld | None]]
+_SUB_WORLDS = OrderedDict()
+_SUB_WORLDS_KEPT = 8  # (scene, kinds) sub-worlds remembered: a checker is built per standing
+
+
 def _sub_world(scene: Scene, kinds: frozenset[SurfaceKind]) -> CollisionWorld | None:
+    """The collision world of ``scene``'s surfaces of ``kinds`` (None without any),
+    remembered for the last few scenes (immutable: only queried)."""
+    key = (id(scene), kinds)
+    known = _SUB_WORLDS.get(key)
+    if known is not None and known[0] is scene:
+        _SUB_WORLDS.move_to_end(key)
+        return known[1]
+    world = _build_sub_world(scene, kinds)
+    _SUB_WORLDS[key] = (scene, world)
+    if len(_SUB_WORLDS) > _SUB_WORLDS_KEPT:
+        _SUB_WORLDS.popitem(last=False)
+    return world
+
+
+def _build_sub_world(scene: Scene, kinds: frozenset[SurfaceKind]) -> CollisionWorld | None:
     faces = [s.triangles for s in scene.surfaces if s.kind in kinds]
     if not faces:
         return None

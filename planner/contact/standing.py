@@ -105,6 +105,25 @@ def body_collides_scene(
     return False
 
 
+_FOOTPRINTS: dict[int, tuple[Surface, tuple[FloatArray, FloatArray]]] = {}
+
+
+def _footprint(surface: Surface) -> tuple[FloatArray, FloatArray]:
+    """The lowest and highest corners (3,) of ``surface``'s triangles' bounding box, made
+    once per surface (a standing state looks under every foot on every surface)."""
+    hit = _FOOTPRINTS.get(id(surface))
+    if hit is None or hit[0] is not surface:
+        corners = surface.triangle_vertices.reshape(-1, 3)
+        box = (corners.min(axis=0), corners.max(axis=0))
+        for array in box:
+            array.flags.writeable = False
+        if len(_FOOTPRINTS) > 4096:
+            _FOOTPRINTS.clear()
+        hit = (surface, box)
+        _FOOTPRINTS[id(surface)] = hit
+    return hit[1]
+
+
 def _support_below(
     scene: Scene, point: FloatArray, search_height: float
 ) -> tuple[Surface, FloatArray] | None:
@@ -113,8 +132,7 @@ def _support_below(
     (3,); None when there is none."""
     best: tuple[float, Surface, FloatArray] | None = None
     for surface in scene.surfaces_of(SurfaceKind.SUPPORT):
-        corners = surface.triangle_vertices.reshape(-1, 3)
-        lo, hi = corners.min(axis=0), corners.max(axis=0)
+        lo, hi = _footprint(surface)
         if np.any(point[:2] < lo[:2] - 1e-6) or np.any(point[:2] > hi[:2] + 1e-6):
             continue
         if not surface.contains_projection(point[None])[0]:

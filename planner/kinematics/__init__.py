@@ -13,6 +13,7 @@ from planner.kinematics.keyframes import (
     swing_trajectory,
 )
 from planner.kinematics.model import (
+    borrowed_data,
     bounded_dofs,
     clamp_to_limits,
     com_position,
@@ -54,6 +55,7 @@ __all__ = [
     "Priority",
     "TargetTask",
     "Task",
+    "borrowed_data",
     "bounded_dofs",
     "clamp_to_limits",
     "com_position",

@@ -10,6 +10,7 @@ its wall-clock cap) cut the motion short.
 
 from __future__ import annotations
 
+import bisect
 import itertools
 import math
 from collections.abc import Sequence
@@ -21,7 +22,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from planner.character import Character
-from planner.kinematics import swing_trajectory
+from planner.kinematics import borrowed_data, swing_trajectory
 from planner.motion import tuning
 from planner.motion.checker import KeyframeCheck, KeyframeChecker
 from planner.motion.spec import MotionPhase, MotionSpec
@@ -164,14 +165,18 @@ class _Targets:
         self.character = character
         self.spec = spec
         self.breaks = np.array([p.t1 for p in spec.phases])
+        self._break_list = [float(p.t1) for p in spec.phases]
         self.lifts: dict[int, float] = {}
         self.tucks: dict[int, tuple[float, float]] = {}
         self.unguarded: set[int] = set()
         self._arcs: dict[tuple[int, float], Any] = {}
+        self._coms: dict[float, FloatArray] = {}
+        # per phase, its stance as (limb, placement (4, 4)) pairs, made once
+        self._stances: dict[int, tuple[tuple[str, FloatArray], ...]] = {}
 
     def phase_index(self, t: float) -> int:
         """The phase running at ``t`` (the later one at a boundary)."""
-        k = int(np.searchsorted(self.breaks, t, side="right"))
+        k = bisect.bisect_right(self._break_list, t)  # np.searchsorted's, in plain floats
         return min(k, len(self.spec.phases) - 1)
 
     def arc(self, k: int) -> Any:
@@ -207,9 +212,17 @@ class _Targets:
         return tuple(c.limb for c in self.spec.phases[k - 1].stance if c.limb not in held)
 
     def com(self, t: float) -> FloatArray:
-        """(3,) m, the COM curve at ``t`` (clamped to its span)."""
-        curve = self.spec.com
-        return np.asarray(curve(min(max(t, curve.t0), curve.t1)), dtype=np.float64)
+        """(3,) m, the COM curve at ``t`` (clamped to its span), read-only: memoised per
+        time (a keyframe's time is often its last control step's, and the blend asks again)."""
+        hit = self._coms.get(t)
+        if hit is None:
+            curve = self.spec.com
+            hit = np.array(curve(min(max(t, curve.t0), curve.t1)), dtype=np.float64)
+            hit.flags.writeable = False
+            if len(self._coms) > 4096:
+                self._coms.clear()
+            self._coms[t] = hit
+        return hit
 
     @staticmethod
     def flight_blend(phase: MotionPhase, t: float) -> tuple[float, float]:
@@ -264,7 +277,10 @@ class _Targets:
         swing = None
         if arc is not None and phase.swing is not None:
             swing = (phase.swing.limb, np.asarray(arc(t), dtype=np.float64))
-        stance = tuple((c.limb, np.asarray(c.placement)) for c in phase.stance)
+        stance = self._stances.get(k)
+        if stance is None:
+            stance = tuple((c.limb, np.asarray(c.placement)) for c in phase.stance)
+            self._stances[k] = stance
         if phase.flight is None and not phase.fast_com:
             return StepTargets(
                 stance,
@@ -472,7 +488,32 @@ def build_motion(
     p must be the ones it was built with) and tracking goes on from the last of them, the
     rest of the keyframes spaced evenly from there; its QP fallbacks are counted in (at
     most)."""
-    tracker = WholeBodyTracker(character, scene_bvh, obstacles)
+    with borrowed_data(character.model) as data:
+        return _build_motion(
+            character,
+            scene_bvh,
+            spec,
+            obstacles=obstacles,
+            until=until,
+            abandon_unclean=abandon_unclean,
+            resume=resume,
+            data=data,
+        )
+
+
+def _build_motion(
+    character: Character,
+    scene_bvh: Any,
+    spec: MotionSpec,
+    *,
+    obstacles: Sequence[tuple[Any, Any]] = (),
+    until: Termination = never,
+    abandon_unclean: bool = False,
+    resume: tuple[BuiltMotion, int] | None = None,
+    data: Any = None,
+) -> BuiltMotion:
+    """:func:`build_motion` with its tracker's kinematics in ``data`` (a pin.Data)."""
+    tracker = WholeBodyTracker(character, scene_bvh, obstacles, data=data)
     checker = KeyframeChecker(character, scene_bvh, obstacles, tracker)
     targets = _Targets(character, spec)
     kept = _Segment([], [], [], np.array(spec.q_start, dtype=np.float64), 0.0)

@@ -88,6 +88,7 @@ class KeyframeChecker:
         self.shapes = [
             (i, o.geometry, str(o.name)) for i, o in enumerate(self.geometry.geometryObjects)
         ]
+        self.frame_ids = {limb.name: int(limb.frame_id) for limb in character.limbs}
 
     def check(
         self,
@@ -107,7 +108,7 @@ class KeyframeChecker:
         hold = 0.0
         for contact in stance:
             skipped |= self.effectors[contact.limb]
-            frame = data.oMf[self.character.limb(contact.limb).frame_id]
+            frame = data.oMf[self.frame_ids[contact.limb]]
             gap = frame.translation - contact.placement[:3, 3]
             hold = max(hold, float(np.sqrt(gap @ gap)))
         allowed = lifting or {}

@@ -30,7 +30,12 @@ import pinocchio as pin
 from numpy.typing import NDArray
 from pink.limits import Limit
 
-from planner.character.collision import bounding_segment, segment_distances
+from planner.character.collision import (
+    FEW_SEGMENTS,
+    bounding_segment,
+    few_segment_distances,
+    segment_distances,
+)
 from planner.motion import tuning
 
 FloatArray = NDArray[np.float64]
@@ -42,7 +47,9 @@ Poses = tuple[FloatArray, FloatArray]
 def shape_poses(geometry_data: Any) -> Poses:
     """The placements of ``geometry_data`` (updated by the caller) as arrays: rotations
     (G, 3, 3) and translations (G, 3), world frame."""
-    homogeneous = np.array([m.homogeneous for m in geometry_data.oMg]).reshape(-1, 4, 4)
+    # tolist() copies the placements out in one call: indexing or iterating the pinocchio
+    # vector converts one element at a time, several times slower
+    homogeneous = np.array([m.homogeneous for m in geometry_data.oMg.tolist()]).reshape(-1, 4, 4)
     return (
         np.ascontiguousarray(homogeneous[:, :3, :3]),
         np.ascontiguousarray(homogeneous[:, :3, 3]),
@@ -195,9 +202,9 @@ class SceneDistances:
         self.rotations, translations = poses
         self.centres = np.einsum("gab,gb->ga", self.rotations, self.local_centres) + translations
         moved = self.centres - self.measured_centres
-        shift = np.sqrt((moved * moved).sum(axis=1))
+        shift = np.sqrt(np.einsum("ga,ga->g", moved, moved))
         turned = self.rotations - self.measured_rotations
-        turn = np.sqrt((turned * turned).sum(axis=(1, 2)))
+        turn = np.sqrt(np.einsum("gab,gab->g", turned, turned))
         return np.asarray(self.measured - shift - turn * self.radii > threshold)
 
     def remember(self, i: int, distance: float) -> None:
@@ -278,13 +285,14 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
         self.steps += 1
         oldest = self.steps - tuning.WITNESS_MEMORY
         settled = self.distances.settled_at(poses, tuning.INFLUENCE_DISTANCE)
-        placements = geometry_data.oMg
+        placements: list[Any] = []  # geometry_data.oMg copied out once, when first needed
         # the remembered witnesses of every shape, in order: (joint, scene point, normal,
         # body point in the joint frame, security distance)
         witnesses: list[tuple[int, FloatArray, FloatArray, FloatArray, float]] = []
         # only shapes near the scene or with witnesses to remember need a look
         active = set(np.flatnonzero(~settled).tolist())
         active.update(i for i, m in self.memory.items() if m)
+        joint_placements: list[Any] = []  # data.oMi copied out once, when first needed
         for i in sorted(active - self.skipped):
             _, shape, joint = self.shapes[i]
             memory = [m for m in self.memory.get(i, ()) if m[0] > oldest]
@@ -292,8 +300,12 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
             if not memory and settled[i]:
                 continue
             if not settled[i]:
-                frame = data.oMi[joint]
+                if not joint_placements:
+                    joint_placements = data.oMi.tolist()
+                frame = joint_placements[joint]
                 nearest = np.inf
+                if not placements:
+                    placements = geometry_data.oMg.tolist()
                 for d, result in self.distances.each(shape, placements[i]):
                     nearest = min(nearest, d)
                     if d > tuning.INFLUENCE_DISTANCE:
@@ -312,10 +324,14 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
         normals = np.array([w[2] for w in witnesses])
         locals_ = np.array([w[3] for w in witnesses])
         securities = np.array([w[4] for w in witnesses])
-        frames = {j: data.oMi[j] for j in set(joints.tolist())}
-        rotations = np.array([frames[j].rotation for j in joints.tolist()])
-        origins = np.array([frames[j].translation for j in joints.tolist()])
-        points = np.einsum("rab,rb->ra", rotations, locals_) + origins
+        if not joint_placements:
+            joint_placements = data.oMi.tolist()
+        # each joint's placement read once (a pinocchio attribute costs a conversion)
+        joint_list = joints.tolist()
+        frames = {j: joint_placements[j].homogeneous for j in set(joint_list)}
+        placed = np.array([frames[j] for j in joint_list])
+        rotations = np.ascontiguousarray(placed[:, :3, :3])
+        points = np.einsum("rab,rb->ra", rotations, locals_) + placed[:, :3, 3]
         distances = np.einsum("ra,ra->r", normals, points - scene_points)
         keep = distances <= tuning.INFLUENCE_DISTANCE
         if not keep.any():
@@ -324,6 +340,42 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
         rows, bounds = _damper_rows(speeds, distances[keep], securities[keep])
         self.rows = len(rows)
         return rows, bounds
+
+
+_PAIR_SHAPES: dict[int, tuple[Any, tuple[Any, ...]]] = {}
+
+
+def _pair_shapes(geometry: Any) -> tuple[Any, ...]:
+    """What :class:`PairBroadPhase` knows of a pin.GeometryModel before any query, computed
+    once per geometry model (read-only arrays): the declared pairs (P, 2); per shape its
+    bounding capsule's ends (G, 3) in its frame; per pair the sum of the capsules' radii (P,);
+    per shape its capsule's middle (G, 3), the middle and the ends stacked (G, 3, 3) (one
+    product places them all) and the radius of the sphere around the capsule (G,)."""
+    hit = _PAIR_SHAPES.get(id(geometry))
+    if hit is not None and hit[0] is geometry:
+        return hit[1]
+    pairs = [(int(p.first), int(p.second)) for p in geometry.collisionPairs]
+    pair_array = np.array(pairs, dtype=np.int64).reshape(-1, 2)
+    ends_a, ends_b, radii = [], [], []
+    for obj in geometry.geometryObjects:
+        end_a, end_b, radius = bounding_segment(obj.geometry)
+        ends_a.append(end_a)
+        ends_b.append(end_b)
+        radii.append(radius)
+    a = np.array(ends_a, dtype=np.float64).reshape(-1, 3)
+    b = np.array(ends_b, dtype=np.float64).reshape(-1, 3)
+    r = np.array(radii, dtype=np.float64)
+    radii_sum = r[pair_array[:, 0]] + r[pair_array[:, 1]]
+    middles = (a + b) / 2.0
+    local_points = np.stack([middles, a, b], axis=1)
+    spheres = r + np.linalg.norm(b - a, axis=1) / 2.0
+    out = (pair_array, a, b, radii_sum, middles, local_points, spheres)
+    for array in out:
+        array.flags.writeable = False
+    if len(_PAIR_SHAPES) >= 64:
+        _PAIR_SHAPES.clear()
+    _PAIR_SHAPES[id(geometry)] = (geometry, out)
+    return out
 
 
 class PairBroadPhase:
@@ -338,26 +390,10 @@ class PairBroadPhase:
     gap. One instance per sequence of queries (it remembers)."""
 
     def __init__(self, geometry: Any) -> None:
-        pairs = [(int(p.first), int(p.second)) for p in geometry.collisionPairs]
-        self.pair_array = np.array(pairs, dtype=np.int64).reshape(-1, 2)
-        ends_a, ends_b, radii = [], [], []
-        for obj in geometry.geometryObjects:
-            end_a, end_b, radius = bounding_segment(obj.geometry)
-            ends_a.append(end_a)
-            ends_b.append(end_b)
-            radii.append(radius)
-        self.ends_a = np.array(ends_a, dtype=np.float64).reshape(-1, 3)
-        self.ends_b = np.array(ends_b, dtype=np.float64).reshape(-1, 3)
-        r = np.array(radii, dtype=np.float64)
-        self.radii_sum = r[self.pair_array[:, 0]] + r[self.pair_array[:, 1]]
-        # per shape: bounding sphere (its capsule's middle in its frame, radius), odometer (m)
-        # and the placement of the last query
-        self.middles = (self.ends_a + self.ends_b) / 2.0
-        # per shape, its middle and its capsule's ends, (G, 3, 3) in its frame: one product
-        # places them all
-        self.local_points = np.stack([self.middles, self.ends_a, self.ends_b], axis=1)
-        self.spheres = r + np.linalg.norm(self.ends_b - self.ends_a, axis=1) / 2.0
-        self.odometer = np.zeros(len(r))
+        shapes = _pair_shapes(geometry)
+        self.pair_array, self.ends_a, self.ends_b, self.radii_sum = shapes[:4]
+        self.middles, self.local_points, self.spheres = shapes[4:]
+        self.odometer = np.zeros(len(self.spheres))
         self.last: tuple[FloatArray, FloatArray] | None = None
         # per pair: distance known (-inf: none), both odometers when it was known
         n = len(self.pair_array)
@@ -377,7 +413,7 @@ class PairBroadPhase:
         if len(self.pair_array) == 0:
             return []
         rot, trans = poses
-        world = np.einsum("gab,gkb->gka", rot, self.local_points)
+        world = np.matmul(self.local_points, rot.transpose(0, 2, 1))  # R p for each point
         world += trans[:, None, :]
         centres = world[:, 0]
         if self.last is not None:
@@ -388,18 +424,23 @@ class PairBroadPhase:
             self.odometer += np.sqrt(np.einsum("gab,gab->g", turned, turned)) * self.spheres
         self.last = (rot, centres)
         run = self.odometer[self.pair_array] - self.known_odometers
-        open_ = np.flatnonzero(self.known - run.sum(axis=1) <= margin)
+        open_ = np.flatnonzero(self.known - (run[:, 0] + run[:, 1]) <= margin)
         if len(open_) == 0:
             return []
         pairs = self.pair_array[open_]
         first, second = world[pairs[:, 0]], world[pairs[:, 1]]
-        gaps = segment_distances(first[:, 1], first[:, 2], second[:, 1], second[:, 2])
+        segments = (first[:, 1], first[:, 2], second[:, 1], second[:, 2])
+        if len(open_) <= FEW_SEGMENTS:
+            gaps = few_segment_distances(*segments)
+        else:
+            gaps = segment_distances(*segments)
         gaps -= self.radii_sum[open_]
         far = gaps > margin
         done = open_[far]
         self.known[done] = gaps[far]
         self.known_odometers[done] = self.odometer[self.pair_array[done]]
-        return [int(k) for k in open_[~far]]
+        near: list[int] = open_[~far].tolist()
+        return near
 
     def remember(self, k: int, distance: float) -> None:
         """Pair ``k`` is at least ``distance`` m apart at the placements of the last

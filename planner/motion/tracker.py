@@ -30,6 +30,7 @@ identity) given as bounds on dq.
 from __future__ import annotations
 
 import ctypes
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -57,6 +58,8 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
 _DAQP_EQUALITY = 5  # daqp's constraint sense of an equality row
+# daqp's constraint sense type (numpy converts a ctypes type to a dtype slowly: once here)
+_DAQP_SENSE = np.dtype(ctypes.c_int)
 
 
 @dataclass(frozen=True, slots=True)
@@ -127,13 +130,16 @@ def speed_limits(model: Any, root_bounded: bool = False) -> FloatArray:
 
 def _nonzero(
     position: float | Sequence[float], orientation: float | Sequence[float]
-) -> tuple[FloatArray, IntArray]:
+) -> tuple[FloatArray, IntArray | slice]:
     """The nonzero weights of a frame task's six error rows (position then orientation
-    costs, each a scalar or (3,)) and their row indices: rows of cost 0 add nothing to the
-    QP."""
+    costs, each a scalar or (3,)) and their row indices (a slice when they are consecutive:
+    the same rows, without a copy): rows of cost 0 add nothing to the QP."""
     costs = np.concatenate([np.broadcast_to(position, 3), np.broadcast_to(orientation, 3)])
     keep = np.flatnonzero(costs)
-    return np.asarray(costs[keep], dtype=np.float64), keep
+    weights = np.asarray(costs[keep], dtype=np.float64)
+    if len(keep) and np.array_equal(keep, np.arange(keep[0], keep[0] + len(keep))):
+        return weights, slice(int(keep[0]), int(keep[0]) + len(keep))
+    return weights, keep
 
 
 @dataclass(frozen=True, slots=True)
@@ -150,10 +156,120 @@ class StepQP:
 def _saturated(here: FloatArray, target: FloatArray, reach: float) -> FloatArray:
     """``target`` (3,) moved toward ``here`` (3,) to at most ``reach`` m from it."""
     gap = np.asarray(target, dtype=np.float64) - here
-    norm = float(np.linalg.norm(gap))
+    norm = math.sqrt(float(gap @ gap))  # np.linalg.norm's own arithmetic, without its cost
     if norm <= reach:
         return np.array(target, dtype=np.float64)
     return np.asarray(here + gap * (reach / norm), dtype=np.float64)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class _CharacterTerms:
+    """What a tracker needs of its character that no step changes, computed once per
+    character (its arrays read-only): the effectors' shapes, the frame ids, the tasks'
+    nonzero-cost weights and rows, pink's ConfigurationLimit and VelocityLimit rows (per
+    root bound: True, the root's speed bounded) and the cost's constant diagonal."""
+
+    effectors: dict[str, frozenset[int]]
+    frame_ids: dict[str, int]
+    stance_weights: dict[str, tuple[FloatArray, IntArray | slice]]
+    swing_weights: dict[str, tuple[FloatArray, IntArray | slice]]
+    rigid_keep: dict[str, slice]
+    trunk_weights: FloatArray
+    trunk_keep: IntArray | slice
+    config: IntArray
+    config_gain: float
+    g_limits: dict[bool, FloatArray]
+    speeds: dict[bool, FloatArray]
+    speed_index: dict[bool, IntArray]
+    root_nv: int
+    bounded: IntArray
+    joints: slice
+    lower: FloatArray
+    upper: FloatArray
+    lower_limit: FloatArray
+    upper_limit: FloatArray
+    diagonal_terms: FloatArray
+
+
+_TERMS: dict[int, tuple[Character, _CharacterTerms]] = {}
+
+
+def _read_only(array: Any) -> Any:
+    array.flags.writeable = False
+    return array
+
+
+def _character_terms(character: Character) -> _CharacterTerms:
+    """The :class:`_CharacterTerms` of ``character``, memoised per character object."""
+    hit = _TERMS.get(id(character))
+    if hit is not None and hit[0] is character:
+        return hit[1]
+    model = character.model
+    # per task the weights of its error's nonzero-cost rows (pink's FrameTask costs:
+    # position then orientation, in the frame), and those rows' indices
+    stance_weights: dict[str, tuple[FloatArray, IntArray | slice]] = {}
+    swing_weights: dict[str, tuple[FloatArray, IntArray | slice]] = {}
+    rigid_keep: dict[str, slice] = {}
+    for limb in character.limbs:
+        patch = limb.contact == "patch"
+        stance_weights[limb.name] = _nonzero(
+            tuning.STANCE_COST, tuning.STANCE_COST if patch else 0.0
+        )
+        swing_weights[limb.name] = _nonzero(
+            tuning.SWING_POSITION_COST, tuning.SWING_ORIENTATION_COST if patch else 0.0
+        )
+        rigid_keep[limb.name] = slice(0, 6) if patch else slice(0, 3)
+    trunk_weights, trunk_keep = _nonzero(
+        [0.0, 0.0, tuning.TRUNK_HEIGHT_COST], [tuning.TRUNK_COST, tuning.TRUNK_COST, 0.0]
+    )
+    config = ConfigurationLimit(model)
+    g_limits: dict[bool, FloatArray] = {}
+    speeds: dict[bool, FloatArray] = {}
+    speed_index: dict[bool, IntArray] = {}
+    for bounded in (False, True):
+        velocity = VelocityLimit(model, speed_limits(model, root_bounded=bounded))
+        speeds[bounded] = np.asarray(velocity.velocity_limit[velocity.indices], dtype=np.float64)
+        speed_index[bounded] = np.asarray(velocity.indices, dtype=np.int64)
+        blocks = [config.projection_matrix, velocity.projection_matrix]
+        g_limits[bounded] = np.vstack([x for m in blocks if m is not None for x in (m, -m)])
+    root_nq = 7 if model.joints[1].nq == 7 else 0
+    root_nv = 6 if root_nq else 0
+    # the cost's constant diagonal: the posture task's weight on the joints (its Jacobian
+    # is the identity there) and the damping everywhere
+    diagonal = np.full(model.nv, tuning.DAMPING)
+    diagonal[root_nv:] += tuning.POSTURE_COST * tuning.POSTURE_COST
+    arrays = [trunk_weights, trunk_keep, *speeds.values(), *speed_index.values()]
+    arrays += [*g_limits.values(), *(x for pair in stance_weights.values() for x in pair)]
+    arrays += [x for pair in swing_weights.values() for x in pair]
+    for array in arrays:
+        if isinstance(array, np.ndarray):
+            _read_only(array)
+    terms = _CharacterTerms(
+        effectors=effector_geometries(character),
+        frame_ids={limb.name: int(limb.frame_id) for limb in character.limbs},
+        stance_weights=stance_weights,
+        swing_weights=swing_weights,
+        rigid_keep=rigid_keep,
+        trunk_weights=trunk_weights,
+        trunk_keep=trunk_keep,
+        config=_read_only(np.asarray(config.indices, dtype=np.int64)),
+        config_gain=float(config.config_limit_gain),
+        g_limits=g_limits,
+        speeds=speeds,
+        speed_index=speed_index,
+        root_nv=root_nv,
+        bounded=_read_only(np.arange(root_nq, model.nq)),
+        joints=slice(root_nq, None),
+        lower=_read_only(np.array(model.lowerPositionLimit[root_nq:], dtype=np.float64)),
+        upper=_read_only(np.array(model.upperPositionLimit[root_nq:], dtype=np.float64)),
+        lower_limit=_read_only(np.array(model.lowerPositionLimit, dtype=np.float64)),
+        upper_limit=_read_only(np.array(model.upperPositionLimit, dtype=np.float64)),
+        diagonal_terms=_read_only(np.diag(diagonal)),
+    )
+    if len(_TERMS) >= 64:
+        _TERMS.clear()
+    _TERMS[id(character)] = (character, terms)
+    return terms
 
 
 class WholeBodyTracker:
@@ -168,67 +284,43 @@ class WholeBodyTracker:
         character: Character,
         scene_bvh: Any,
         obstacles: Sequence[tuple[Any, Any]] = (),
+        data: Any = None,
     ) -> None:
         self.character = character
         model = character.model
         self.model = model
-        self.data = model.createData()
-        self.effectors = effector_geometries(character)
+        # pin.Data for its kinematics: ``data`` (lent by the caller for the tracker's life)
+        # or its own
+        self.data = model.createData() if data is None else data
+        terms = _character_terms(character)
+        self.effectors = terms.effectors
         self._root_frame = 1
-        self._frame_ids = {limb.name: int(limb.frame_id) for limb in character.limbs}
-        # per task the weights of its error's nonzero-cost rows (pink's FrameTask costs:
-        # position then orientation, in the frame), and those rows' indices
-        self._stance_weights: dict[str, tuple[FloatArray, IntArray]] = {}
-        self._swing_weights: dict[str, tuple[FloatArray, IntArray]] = {}
-        self._rigid_keep: dict[str, slice] = {}
-        for limb in character.limbs:
-            patch = limb.contact == "patch"
-            self._stance_weights[limb.name] = _nonzero(
-                tuning.STANCE_COST, tuning.STANCE_COST if patch else 0.0
-            )
-            self._swing_weights[limb.name] = _nonzero(
-                tuning.SWING_POSITION_COST, tuning.SWING_ORIENTATION_COST if patch else 0.0
-            )
-            self._rigid_keep[limb.name] = slice(0, 6) if patch else slice(0, 3)
-        self._trunk_weights, self._trunk_keep = _nonzero(
-            [0.0, 0.0, tuning.TRUNK_HEIGHT_COST], [tuning.TRUNK_COST, tuning.TRUNK_COST, 0.0]
-        )
+        self._frame_ids = terms.frame_ids
+        self._stance_weights = terms.stance_weights
+        self._swing_weights = terms.swing_weights
+        self._rigid_keep = terms.rigid_keep
+        self._trunk_weights, self._trunk_keep = terms.trunk_weights, terms.trunk_keep
         self.geometry_data = pin.GeometryData(character.motion_geometry)
         for request in self.geometry_data.distanceRequests:
             request.enable_signed_distance = True
         self.scene = SceneClearance(model, character.motion_geometry, scene_bvh, obstacles)
         self.self_clearance = SelfClearance(model, character.motion_geometry)
-        # joint position and speed limits as pink's ConfigurationLimit and VelocityLimit
-        # rows, per root bound (True: the root's speed bounded)
-        config = ConfigurationLimit(model)
-        self._config = np.asarray(config.indices, dtype=np.int64)
-        self._config_gain = float(config.config_limit_gain)
-        self._g_limits: dict[bool, FloatArray] = {}
-        self._speeds: dict[bool, FloatArray] = {}
-        self._speed_index: dict[bool, IntArray] = {}
-        for bounded in (False, True):
-            velocity = VelocityLimit(model, speed_limits(model, root_bounded=bounded))
-            self._speeds[bounded] = np.asarray(
-                velocity.velocity_limit[velocity.indices], dtype=np.float64
-            )
-            self._speed_index[bounded] = np.asarray(velocity.indices, dtype=np.int64)
-            blocks = [config.projection_matrix, velocity.projection_matrix]
-            self._g_limits[bounded] = np.vstack(
-                [x for m in blocks if m is not None for x in (m, -m)]
-            )
+        self._config = terms.config
+        self._config_gain = terms.config_gain
+        self._g_limits = terms.g_limits
+        self._speeds = terms.speeds
+        self._speed_index = terms.speed_index
         self.fallbacks = 0
         self._lift_off: dict[str, dict[int, float]] = {}
-        self._trunk_cache: dict[bytes, FloatArray] = {}
-        root_nq = 7 if model.joints[1].nq == 7 else 0
-        self._root_nv = 6 if root_nq else 0
-        self._bounded = np.arange(root_nq, model.nq)
-        self._lower = np.asarray(model.lowerPositionLimit[root_nq:], dtype=np.float64)
-        self._upper = np.asarray(model.upperPositionLimit[root_nq:], dtype=np.float64)
-        # the cost's constant diagonal: the posture task's weight on the joints (its
-        # Jacobian is the identity there) and the damping everywhere
-        diagonal = np.full(model.nv, tuning.DAMPING)
-        diagonal[self._root_nv :] += tuning.POSTURE_COST * tuning.POSTURE_COST
-        self._diagonal_terms = np.diag(diagonal)
+        self._trunk_cache: dict[tuple[bool, bytes], FloatArray] = {}
+        self._held: dict[int, tuple[FloatArray, Any]] = {}
+        self._root_nv = terms.root_nv
+        self._bounded = terms.bounded
+        self._joints = terms.joints
+        self._lower, self._upper = terms.lower, terms.upper
+        self._lower_limit, self._upper_limit = terms.lower_limit, terms.upper_limit
+        self._unbounded = np.full(model.nv, 1e30)  # the bound of an unbounded dq
+        self._diagonal_terms = terms.diagonal_terms
         self.q = pin.neutral(model)
         # kinematics stamps: of the last objective, of the last shape placements
         self._stamp = 0
@@ -242,19 +334,17 @@ class WholeBodyTracker:
         ``level``, its yaw, and its pitch only for a character whose trunk may pitch (a
         hexapod on a slope), never a roll; otherwise its own orientation. Memoised per
         posture (a phase keeps its posture for many steps)."""
-        if not level:
-            rotation = pin.Quaternion(posture[3:7]).toRotationMatrix()
-            return np.asarray(rotation, dtype=np.float64)
-        key = posture[3:7].tobytes()
+        key = (level, posture[3:7].tobytes())
         cached = self._trunk_cache.get(key)
         if cached is None:
             rotation = pin.Quaternion(posture[3:7]).toRotationMatrix()
-            yaw, pitch, _ = Rotation.from_matrix(rotation).as_euler("ZYX")
-            if self.character.max_pitch <= tuning.LEVEL_TRUNK_PITCH:
-                pitch = 0.0
-            cached = np.asarray(
-                Rotation.from_euler("ZY", [yaw, pitch]).as_matrix(), dtype=np.float64
-            )
+            if level:
+                yaw, pitch, _ = Rotation.from_matrix(rotation).as_euler("ZYX")
+                if self.character.max_pitch <= tuning.LEVEL_TRUNK_PITCH:
+                    pitch = 0.0
+                rotation = Rotation.from_euler("ZY", [yaw, pitch]).as_matrix()
+            cached = np.asarray(rotation, dtype=np.float64)
+            cached.flags.writeable = False
             if len(self._trunk_cache) > 4096:
                 self._trunk_cache.clear()
             self._trunk_cache[key] = cached
@@ -300,7 +390,8 @@ class WholeBodyTracker:
         ``FAST_SUBSTEPS``): the gentle trunk and posture pulls, which are fractions per step,
         are scaled so that they converge as fast per second as with nominal steps."""
         q = np.array(q, dtype=np.float64)
-        q[self._bounded] = np.minimum(np.maximum(q[self._bounded], self._lower), self._upper)
+        joints = self._joints
+        q[joints] = np.minimum(np.maximum(q[joints], self._lower), self._upper)
         if targets.exact_com:
             q = self._onto_com(q, targets.com)
         qp = self.objective(q, targets, share)
@@ -332,7 +423,7 @@ class WholeBodyTracker:
         skipped: set[int] = set()
         held: dict[str, tuple[FloatArray, FloatArray]] = {}
         for limb, pose in targets.stance:
-            jac, err = self._frame_error(self._frame_ids[limb], pose[:3, :3], pose[:3, 3])
+            jac, err = self._frame_error(self._frame_ids[limb], self._held_target(pose))
             held[limb] = (jac, err)
             weights, keep = self._stance_weights[limb]
             rows.append(weights[:, None] * jac[keep])
@@ -343,7 +434,7 @@ class WholeBodyTracker:
         for limb, pose in moving:
             frame = self._frame_ids[limb]
             goal = _saturated(data.oMf[frame].translation, pose[:3, 3], tuning.SWING_MAX_ERROR)
-            jac, err = self._frame_error(frame, pose[:3, :3], goal)
+            jac, err = self._frame_error(frame, pin.SE3(pose[:3, :3], goal))
             weights, keep = self._swing_weights[limb]
             rows.append(weights[:, None] * jac[keep])
             errors.append(weights * (-tuning.TASK_GAIN * err[keep]))
@@ -361,17 +452,17 @@ class WholeBodyTracker:
         posture = np.asarray(targets.posture, dtype=np.float64)
         trunk = self.trunk_rotation(posture, targets.level_trunk)
         gain = 1.0 - (1.0 - tuning.TRUNK_GAIN) ** share
-        jac, err = self._frame_error(self._root_frame, trunk, posture[:3])
+        jac, err = self._frame_error(self._root_frame, pin.SE3(trunk, posture[:3]))
         rows.append(self._trunk_weights[:, None] * jac[self._trunk_keep])
         errors.append(self._trunk_weights * (-gain * err[self._trunk_keep]))
-        stacked = np.vstack(rows)
+        stacked = np.concatenate(rows)  # 2-D blocks: vstack's result, without its checks
         hessian = stacked.T @ stacked
         linear = -(np.concatenate(errors) @ stacked)
         # the posture task's Jacobian is the identity on the joints: its terms are diagonal.
         # Each joint is pulled at most POSTURE_MAX_ERROR toward its posture per step: summed
         # over thirty joints, a far posture would otherwise outweigh the stance contacts
         reach = tuning.POSTURE_MAX_ERROR * share
-        joints = slice(self._bounded[0], None)
+        joints = self._joints
         aim = q.copy()
         aim[joints] = q[joints] + np.minimum(np.maximum(posture[joints] - q[joints], -reach), reach)
         gain = 1.0 - (1.0 - tuning.POSTURE_GAIN) ** share
@@ -382,14 +473,22 @@ class WholeBodyTracker:
         self.scene.set_phase(frozenset(skipped), light)
         return StepQP(hessian, linear, held)
 
-    def _frame_error(
-        self, frame: int, rotation: FloatArray, position: FloatArray
-    ) -> tuple[FloatArray, FloatArray]:
+    def _held_target(self, pose: FloatArray) -> Any:
+        """``pose`` (4, 4) as a pin.SE3, made once per stance placement (a phase holds the
+        same contact placements for all its steps)."""
+        hit = self._held.get(id(pose))
+        if hit is None or hit[0] is not pose:
+            if len(self._held) > 256:
+                self._held.clear()
+            hit = (pose, pin.SE3(pose[:3, :3], pose[:3, 3]))
+            self._held[id(pose)] = hit
+        return hit[1]
+
+    def _frame_error(self, frame: int, target: Any) -> tuple[FloatArray, FloatArray]:
         """Jacobian (6, nv) and error (6,) of a frame task (pink's ``FrameTask``: the error
-        is the twist, in the frame, from the frame's pose to the target pose ``rotation``
-        (3, 3), ``position`` (3,) m in the world)."""
+        is the twist, in the frame, from the frame's pose to the ``target`` pose (pin.SE3,
+        world))."""
         here = self.data.oMf[frame]
-        target = pin.SE3(np.array(rotation), np.array(position))
         error = pin.log6(here.actInv(target)).vector
         local = pin.getFrameJacobian(self.model, self.data, frame, pin.LOCAL)
         jac = -pin.Jlog6(target.actInv(here)) @ local
@@ -405,8 +504,8 @@ class WholeBodyTracker:
         gain = self._config_gain
         h_config = np.concatenate(
             [
-                gain * pin.difference(self.model, q, self.model.upperPositionLimit)[self._config],
-                -gain * pin.difference(self.model, q, self.model.lowerPositionLimit)[self._config],
+                gain * pin.difference(self.model, q, self._upper_limit)[self._config],
+                -gain * pin.difference(self.model, q, self._lower_limit)[self._config],
             ]
         )
         speeds = self._speeds[root_bounded]
@@ -424,15 +523,15 @@ class WholeBodyTracker:
         q, model = self.q, self.model
         gain = self._config_gain
         step = dt * self._speeds[root_bounded]
-        upper = np.full(model.nv, 1e30)
-        lower = np.full(model.nv, -1e30)
+        upper = self._unbounded.copy()
+        lower = -upper
         speed = self._speed_index[root_bounded]
         upper[speed] = step
         lower[speed] = -step
         config = self._config
-        reach = gain * pin.difference(model, q, model.upperPositionLimit)[config]
+        reach = gain * pin.difference(model, q, self._upper_limit)[config]
         upper[config] = np.minimum(upper[config], reach)
-        reach = gain * pin.difference(model, q, model.lowerPositionLimit)[config]
+        reach = gain * pin.difference(model, q, self._lower_limit)[config]
         lower[config] = np.maximum(lower[config], reach)
         return lower, upper
 
@@ -523,14 +622,14 @@ def _solve_daqp(
     G x = h, by daqp; None when it finds none."""
     n = len(linear)
     if rows:
-        constraints = np.vstack([g for g, _ in rows])
+        constraints = np.concatenate([g for g, _ in rows])  # 2-D blocks, as vstack
         bound = np.concatenate([upper, *(h for _, h in rows)])
     else:
         constraints = np.zeros((0, n))
         bound = upper
     floor = np.full(len(bound), -1e30)
     floor[:n] = lower
-    sense = np.zeros(len(bound), dtype=ctypes.c_int)
+    sense = np.zeros(len(bound), dtype=_DAQP_SENSE)
     if equalities:
         sense[len(bound) - equalities :] = _DAQP_EQUALITY
     x, _, exitflag, _ = daqp.solve(hessian, linear, constraints, bound, floor, sense)

@@ -120,11 +120,13 @@ class SampleDatabase:
             return np.zeros(0, dtype=np.int64)
         lo = np.floor((pts - radius) / self.voxel_size).astype(np.int64)
         hi = np.floor((pts + radius) / self.voxel_size).astype(np.int64)
-        cand = np.unique(self._gather(lo, hi))
+        cand = self._gather(lo, hi)
         if len(cand) == 0:
             return cand
+        # the distance test before the sort: np.unique then sorts the few samples kept, not
+        # every sample of the voxels around (the same indices, each tested alike)
         d2 = np.min(np.sum((self.positions[cand, None, :] - pts[None]) ** 2, axis=2), axis=1)
-        return np.asarray(cand[d2 <= radius * radius], dtype=np.int64)
+        return np.asarray(np.unique(cand[d2 <= radius * radius]), dtype=np.int64)
 
     def samples_in_box(self, lower: FloatArray, upper: FloatArray) -> IntArray:
         """Sorted indices of samples whose position lies in the axis-aligned box

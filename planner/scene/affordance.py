@@ -143,7 +143,7 @@ class Surface:
         margin : metres; if positive, points closer than this to the boundary are outside.
         """
         coords = self.to_plane(points)
-        inside = g2.winding_numbers(coords, self.polygons_2d()) != 0
+        inside = _winding_numbers(self, coords) != 0
         if margin > 0.0 and np.any(inside):
             distance, _, _ = self._boundary_distance(coords[inside])
             inside[np.flatnonzero(inside)[distance < margin]] = False
@@ -157,7 +157,7 @@ class Surface:
         """
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         coords = self.to_plane(pts)
-        inside = g2.winding_numbers(coords, self.polygons_2d()) != 0
+        inside = _winding_numbers(self, coords) != 0
         out = np.zeros_like(pts)
         if np.any(inside):
             out[inside] = self._lift(coords[inside])
@@ -173,20 +173,19 @@ class Surface:
         holes), and the nearest boundary points (p, 2) in plane coordinates."""
         c = np.asarray(coords, dtype=np.float64).reshape(-1, 2)
         distance, segment, t = self._boundary_distance(c)
-        starts, ends = self._segments_3d()
-        a, b = self.to_plane(starts)[segment], self.to_plane(ends)[segment]
+        _, _, starts_uv, ends_uv = _boundary_segments(self)
+        a, b = starts_uv[segment], ends_uv[segment]
         return distance, a + t[:, None] * (b - a)
 
     def _segments_3d(self) -> tuple[FloatArray, FloatArray]:
-        starts = np.concatenate(self.polygons)
-        ends = np.concatenate([np.roll(p, -1, axis=0) for p in self.polygons])
+        starts, ends, _, _ = _boundary_segments(self)
         return starts, ends
 
     def _boundary_distance(
         self, coords: FloatArray
     ) -> tuple[FloatArray, NDArray[np.int64], FloatArray]:
-        starts, ends = self._segments_3d()
-        return g2.closest_on_segments(coords, self.to_plane(starts), self.to_plane(ends))
+        _, _, starts_uv, ends_uv = _boundary_segments(self)
+        return g2.closest_on_segments(coords, starts_uv, ends_uv)
 
     def _lift(self, coords: FloatArray) -> FloatArray:
         """Points on the mesh above/below (q, 2) plane coordinates lying inside the surface."""
@@ -212,6 +211,50 @@ class Surface:
             w = np.stack([wa[rows, best], wb[rows, best], wc[rows, best]], axis=1)
             result[begin : begin + len(block)] = np.einsum("qk,qkj->qj", w, tri[best])
         return result
+
+
+_SEGMENTS: dict[int, tuple[Surface, tuple[FloatArray, FloatArray, FloatArray, FloatArray]]] = {}
+
+
+def _boundary_segments(
+    surface: Surface,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """The boundary segments of ``surface``'s polygons: starts and ends (s, 3) in the world
+    and the same (s, 2) in plane coordinates; computed once per surface (read-only), as
+    contact placement asks for them again and again."""
+    hit = _SEGMENTS.get(id(surface))
+    if hit is not None and hit[0] is surface:
+        return hit[1]
+    starts = np.concatenate(surface.polygons)
+    ends = np.concatenate([np.roll(p, -1, axis=0) for p in surface.polygons])
+    out = (starts, ends, surface.to_plane(starts), surface.to_plane(ends))
+    for array in out:
+        array.flags.writeable = False
+    if len(_SEGMENTS) > 4096:
+        _SEGMENTS.clear()
+    _SEGMENTS[id(surface)] = (surface, out)
+    return out
+
+
+_LOOP_EDGES: dict[int, tuple[Surface, tuple[FloatArray, FloatArray] | None]] = {}
+
+
+def _winding_numbers(surface: Surface, coords: FloatArray) -> NDArray[np.int64]:
+    """:func:`geometry2d.winding_numbers` of (p, 2) plane coordinates about ``surface``'s
+    polygons, their edges made once per surface (read-only)."""
+    hit = _LOOP_EDGES.get(id(surface))
+    if hit is None or hit[0] is not surface:
+        loops = surface.polygons_2d()
+        edges = g2.loop_edges(loops) if loops else None
+        for array in edges or ():
+            array.flags.writeable = False
+        if len(_LOOP_EDGES) > 4096:
+            _LOOP_EDGES.clear()
+        hit = (surface, edges)
+        _LOOP_EDGES[id(surface)] = hit
+    if hit[1] is None:
+        return np.zeros(len(np.asarray(coords).reshape(-1, 2)), dtype=np.int64)
+    return g2.edge_winding_numbers(coords, *hit[1])
 
 
 def _triangle_geometry(

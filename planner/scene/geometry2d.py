@@ -102,8 +102,21 @@ def winding_numbers(points: FloatArray, loops: list[FloatArray]) -> NDArray[np.i
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     if not loops:
         return np.zeros(len(pts), dtype=np.int64)
+    a, b = loop_edges(loops)
+    return edge_winding_numbers(pts, a, b)
+
+
+def loop_edges(loops: list[FloatArray]) -> tuple[FloatArray, FloatArray]:
+    """The edges of closed (k, 2) loops: their starts (e, 2) and ends (e, 2)."""
     a = np.concatenate([np.asarray(loop, dtype=np.float64) for loop in loops])
     b = np.concatenate([np.roll(np.asarray(loop, dtype=np.float64), -1, axis=0) for loop in loops])
+    return a, b
+
+
+def edge_winding_numbers(points: FloatArray, a: FloatArray, b: FloatArray) -> NDArray[np.int64]:
+    """:func:`winding_numbers` of (p, 2) points about loops given by their edges
+    (:func:`loop_edges`: starts ``a`` (e, 2), ends ``b`` (e, 2), e > 0)."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     ax, ay, bx, by = a[None, :, 0], a[None, :, 1], b[None, :, 0], b[None, :, 1]
     total = np.zeros(len(pts), dtype=np.int64)
     step = max(1, _BLOCK // max(1, len(a)))

@@ -105,3 +105,20 @@ def test_a_shape_inside_is_as_deep_as_its_deepest_contact(cid: str) -> None:
                 inside += 1
                 assert deepest <= nearest
     assert inside > 0
+
+
+def test_few_segment_distances_match_the_batched_ones() -> None:
+    """The broad phase's plain-float capsule gaps (a handful of pairs) are the batched
+    formula's, degenerate segments (points, parallel, touching) included."""
+    from planner.character.collision import few_segment_distances, segment_distances
+
+    rng = np.random.default_rng(4)
+    ends = [rng.normal(size=(40, 3)) for _ in range(4)]
+    ends[1][:5] = ends[0][:5]  # first segment a point
+    ends[3][5:10] = ends[2][5:10]  # second segment a point
+    ends[2][10:15] = ends[0][10:15] + 0.3  # parallel, shifted
+    ends[3][10:15] = ends[1][10:15] + 0.3
+    ends[2][15:20] = ends[1][15:20]  # touching end to end
+    np.testing.assert_allclose(
+        few_segment_distances(*ends), segment_distances(*ends), rtol=0.0, atol=1e-12
+    )
