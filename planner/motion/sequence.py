@@ -610,6 +610,10 @@ def sequence_motion(
         reserve = float(first_com.phase_times[-1] - first_com.phase_times[0])
         new_states = list(replan(states, bad, reserve) or ())
         if not new_states:
+            trials.append(
+                f"phase {bad}: not re-planned (no other contact changes found, "
+                "or no walks or work left for them)"
+            )
             return None
         same = next(
             (j for j, (a, b) in enumerate(zip(states, new_states, strict=False)) if a is not b),
