@@ -32,7 +32,7 @@ from service.app import create_app
 from service.registry import QuotaExceeded, Registry
 from service.settings import Settings
 from tests.live_server import live_server
-from tests.mesh_files import grid_mesh, grid_ply, instanced_glb
+from tests.mesh_files import grid_mesh, grid_ply, instanced_dae, instanced_glb
 from tests.paths import gecko_cache_dir
 from tests.prometheus_text import metric_samples, sample_value
 
@@ -189,13 +189,48 @@ def test_a_ply_padded_with_vertices_is_refused_by_its_header(
     assert "400000 vertices" in message and "limit 300000" in message, message
 
 
-def test_a_mesh_over_the_limit_without_a_header_count_is_refused_after_parsing(
+def _quads_obj(side: int) -> bytes:
+    """An OBJ grid of ``side`` x ``side`` quads: its ``f`` lines count one triangle each, and
+    it parses into two per quad."""
+    lines = [f"v {0.1 * i} {0.1 * j} 0" for i in range(side + 1) for j in range(side + 1)]
+    for i in range(side):
+        for j in range(side):
+            a = i * (side + 1) + j + 1  # OBJ indices start at 1
+            lines.append(f"f {a} {a + side + 1} {a + side + 2} {a + 1}")
+    return "\n".join(lines).encode()
+
+
+def test_a_mesh_over_the_limit_its_header_undercounts_is_refused_after_parsing(
     upload_server: tuple[str, Path],
 ) -> None:
     url, _ = upload_server
-    body = grid_mesh(120_000).export(file_type="dae")  # COLLADA: no count before parsing
-    response = httpx.post(f"{url}/v1/scenes", params={"format": "dae"}, content=body, timeout=120)
-    assert "GECKO_MAX_TRIANGLES" in _error(response, 413, "too_large")
+    body = _quads_obj(240)  # 57,600 faces on its lines, 115,200 triangles parsed
+    response = httpx.post(f"{url}/v1/scenes", params={"format": "obj"}, content=body, timeout=120)
+    message = _error(response, 413, "too_large")
+    assert "mesh has 115200 triangles; limit 100000" in message, message
+    assert "GECKO_MAX_TRIANGLES" in message
+
+
+def test_an_instanced_dae_is_refused_by_its_scene_graph_and_one_within_the_limit_is_built(
+    upload_server: tuple[str, Path],
+) -> None:
+    url, scenes = upload_server
+    refused_body = instanced_dae(20, subdivisions=2, doublings=10)  # 6.5 M triangles in 13 KB
+    accepted_body = instanced_dae(3, subdivisions=2, doublings=2)  # 3,840 triangles
+    with HealthProbe(url) as probe, httpx.Client(base_url=url, timeout=120) as http:
+        time.sleep(5 * HEALTH_EVERY_S)
+        refused = http.post("/v1/scenes", params={"format": "dae"}, content=refused_body)
+        accepted = http.post("/v1/scenes", params={"format": "dae"}, content=accepted_body)
+        time.sleep(5 * HEALTH_EVERY_S)
+    message = _error(refused, 413, "too_large")
+    assert "the DAE file holds 6553600 triangles (after instancing)" in message, message
+    assert "limit 100000 (GECKO_MAX_TRIANGLES)" in message, message
+    assert not [path for path in scenes.iterdir() if path.name.startswith(".tmp-")]
+    assert accepted.status_code == 201, accepted.text
+    assert accepted.json()["triangle_count"] == 3 * 4 * 320
+    assert httpx.delete(f"{url}/v1/scenes/{accepted.json()['id']}", timeout=30).status_code == 204
+    assert not probe.failures
+    assert max(probe.latencies) < HEALTH_LIMIT_S, sorted(probe.latencies)[-5:]
 
 
 @asynccontextmanager
