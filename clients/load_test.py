@@ -72,7 +72,7 @@ MAX_RETRY_AFTER_S = 10.0  # the longest a refused user waits before its next req
 SOAK_CONCURRENCY = 16  # a soak's level unless --concurrency names another
 SOAK_SAMPLE_EVERY_S = 5.0  # a soak reads the server's memory this often
 MIN_SAMPLE_EVERY_S = 0.5
-MEMORY_GROWTH_FRACTION = 0.05  # a soak's memory "grew" past both of these, over its 2nd half
+MEMORY_GROWTH_FRACTION = 0.01  # a soak's memory "grew" past both of these, over its 2nd half
 MEMORY_GROWTH_BYTES = 16 * 2**20
 
 # The workloads: small and quick answers of each kind on the built-in characters and scenes.
