@@ -22,6 +22,18 @@ before its next request, as a client should); then /health's p50 and p99 and the
 resident memory (its ``gecko_resident_memory_bytes`` metric: the service process and its
 compute processes) before and after the level. Every failure says what happened: its type and
 its text.
+
+A soak holds one level long and watches the server's memory::
+
+    python -m clients.load_test --soak 60 --concurrency 16
+
+runs the mix at one concurrency (16 unless ``--concurrency`` names another) for 60 s, reads
+the server's memory every ``--sample-every`` seconds (5) and prints, besides the level's
+figures, the memory before the load (idle: compute processes start on demand), at the first
+sample under load (start), at the end and at its maximum, the growth from start to end and
+its trend (least-squares slope, MiB per minute), the same over the soak's second half, and
+whether it grew: by more than MEMORY_GROWTH_FRACTION and MEMORY_GROWTH_BYTES both over the
+second half (the first holds the warm-up: compute processes and caches started on demand).
 """
 
 from __future__ import annotations
@@ -57,6 +69,11 @@ PROBE_START_S = 60.0  # s the /health probe's process may take to start or to st
 UPLOAD_GRID = 12  # an upload is a 12 x 12 height field: 242 triangles
 MEMORY_METRIC = "gecko_resident_memory_bytes"
 MAX_RETRY_AFTER_S = 10.0  # the longest a refused user waits before its next request
+SOAK_CONCURRENCY = 16  # a soak's level unless --concurrency names another
+SOAK_SAMPLE_EVERY_S = 5.0  # a soak reads the server's memory this often
+MIN_SAMPLE_EVERY_S = 0.5
+MEMORY_GROWTH_FRACTION = 0.01  # a soak's memory "grew" past both of these, over its 2nd half
+MEMORY_GROWTH_BYTES = 16 * 2**20
 
 # The workloads: small and quick answers of each kind on the built-in characters and scenes.
 STEP_START = {
@@ -189,6 +206,89 @@ def parse_mix(text: str) -> dict[str, float]:
     if sum(mix.values()) <= 0:
         raise LoadTestError("--mix gives every kind a zero weight")
     return mix
+
+
+def parse_soak(
+    seconds: float, concurrency: str | None, sample_every_s: float | None = None
+) -> tuple[int, float]:
+    """A soak's one concurrency level (SOAK_CONCURRENCY unless ``concurrency`` names one) and
+    its memory sampling period (SOAK_SAMPLE_EVERY_S unless given, and at most the soak's
+    length), after checking them."""
+    if not (math.isfinite(seconds) and 0 < seconds <= MAX_DURATION_S):
+        raise LoadTestError(f"--soak must be in (0, {MAX_DURATION_S:g}] seconds, not {seconds:g}")
+    longest = max(MIN_SAMPLE_EVERY_S, seconds)
+    if sample_every_s is None:
+        sample_every_s = min(SOAK_SAMPLE_EVERY_S, longest)
+    if not (math.isfinite(sample_every_s) and MIN_SAMPLE_EVERY_S <= sample_every_s <= longest):
+        raise LoadTestError(
+            f"--sample-every must be in [{MIN_SAMPLE_EVERY_S:g}, {longest:g}] seconds (the "
+            f"soak's length), not {sample_every_s:g}"
+        )
+    if concurrency is None:
+        return SOAK_CONCURRENCY, sample_every_s
+    levels = parse_levels(concurrency)
+    if len(levels) != 1:
+        raise LoadTestError(
+            f"a soak runs one concurrency level, not {len(levels)} ('{concurrency}')"
+        )
+    return levels[0], sample_every_s
+
+
+def memory_trend(samples: Sequence[tuple[float, dict[str, float]]]) -> dict[str, Any]:
+    """A soak's memory from its samples ``(seconds since the load began, bytes by process)``:
+    the first taken before the load (idle), the others under it, the last after it. Gives
+    ``idle``, ``start`` (the first sample under load), ``end``, ``max`` (bytes, all
+    processes together), ``growth`` (end - start), ``slope_per_min`` (least squares over
+    the samples from start on, bytes per minute), the same per process, and the second half's
+    ``settled_growth`` (end - the first sample from the soak's middle on) and
+    ``settled_slope_per_min``. ``grew`` judges the second half (None when the server reports
+    no memory): the first also holds the warm-up, compute processes and their caches
+    started on demand (an uploads process at the first upload, say), which is not a leak."""
+    reported = [(t, memory) for t, memory in samples if memory]
+    loaded = [(t, memory) for t, memory in reported if t > 0]
+    if not loaded:
+        return {"samples": len(samples), "reported": False, "grew": None}
+    idle = next((memory for t, memory in reported if t <= 0), {})
+    start, end = loaded[0][1], loaded[-1][1]
+    totals = [(t, sum(memory.values())) for t, memory in loaded]
+    middle = loaded[-1][0] / 2
+    settled = [(t, total) for t, total in totals if t >= middle]
+    settled_growth = settled[-1][1] - settled[0][1]
+    tolerance = max(MEMORY_GROWTH_FRACTION * settled[0][1], MEMORY_GROWTH_BYTES)
+    names = sorted({name for _, memory in loaded for name in memory})
+    return {
+        "samples": len(samples),
+        "reported": True,
+        "idle": sum(idle.values()),
+        "start": sum(start.values()),
+        "end": sum(end.values()),
+        "max": max(total for _, total in totals),
+        "growth": sum(end.values()) - sum(start.values()),
+        "slope_per_min": _slope(totals) * 60.0,
+        "settled_growth": settled_growth,
+        "settled_slope_per_min": _slope(settled) * 60.0,
+        "grew": settled_growth > tolerance,
+        "by_process": {
+            name: {
+                "start": start.get(name, 0.0),
+                "end": end.get(name, 0.0),
+                "max": max(memory.get(name, 0.0) for _, memory in loaded),
+            }
+            for name in names
+        },
+    }
+
+
+def _slope(points: Sequence[tuple[float, float]]) -> float:
+    """Least-squares slope of y over x (0 with fewer than two distinct x)."""
+    if len(points) < 2:
+        return 0.0
+    mean_x = sum(x for x, _ in points) / len(points)
+    mean_y = sum(y for _, y in points) / len(points)
+    spread = sum((x - mean_x) ** 2 for x, _ in points)
+    if spread == 0:
+        return 0.0
+    return sum((x - mean_x) * (y - mean_y) for x, y in points) / spread
 
 
 def parse_levels(text: str) -> list[int]:
@@ -421,9 +521,15 @@ class LoadTest:
         return await self.http.get(user.rng.choice(LIST_PATHS))
 
     async def level(
-        self, concurrency: int, *, duration_s: float, max_requests: int
+        self,
+        concurrency: int,
+        *,
+        duration_s: float,
+        max_requests: int,
+        memory_every_s: float | None = None,
     ) -> dict[str, Any]:
-        """``concurrency`` users for ``duration_s`` (at most ``max_requests`` requests)."""
+        """``concurrency`` users for ``duration_s`` (at most ``max_requests`` requests); with
+        ``memory_every_s``, the server's memory read that often too (a soak)."""
         kinds = [kind for kind, weight in self.settings.mix.items() if weight > 0]
         weights = [self.settings.mix[kind] for kind in kinds]
         stats = {kind: KindStats() for kind in kinds}
@@ -460,18 +566,38 @@ class LoadTest:
                     if pause > 0:
                         await asyncio.sleep(min(pause, max(0.0, deadline - time.monotonic())))
 
+        samples: list[tuple[float, dict[str, float]]] = [(0.0, memory_before)]
+
+        async def sample_memory(every_s: float) -> None:
+            while True:
+                await asyncio.sleep(every_s)
+                memory = await self.memory()
+                samples.append((round(time.monotonic() - started, 3), memory))
+
+        sampler = None
+        if memory_every_s is not None:
+            sampler = asyncio.create_task(sample_memory(memory_every_s))
         try:
             await asyncio.gather(*(user_loop(i) for i in range(concurrency)))
         finally:
             seconds = time.monotonic() - started
+            if sampler is not None:
+                sampler.cancel()
+                await asyncio.gather(sampler, return_exceptions=True)
             health = await asyncio.to_thread(probe.stop)
-        return {
+        memory_after = await self.memory()
+        out = {
             "concurrency": concurrency,
             "seconds": round(seconds, 3),
             "kinds": {kind: s.summary(seconds) for kind, s in stats.items()},
             "health": health.summary(seconds),
-            "memory_bytes": {"before": memory_before, "after": await self.memory()},
+            "memory_bytes": {"before": memory_before, "after": memory_after},
         }
+        if memory_every_s is not None:
+            samples.append((round(time.monotonic() - started, 3), memory_after))
+            out["memory_samples"] = [{"t": t, "bytes": memory} for t, memory in samples]
+            out["soak"] = memory_trend(samples)
+        return out
 
 
 async def run_ramp(
@@ -482,8 +608,10 @@ async def run_ramp(
     max_requests: int,
     settings: Settings,
     seed: int = 0,
+    memory_every_s: float | None = None,
 ) -> list[dict[str, Any]]:
-    """Prepare, then run each concurrency level in turn; one summary per level."""
+    """Prepare, then run each concurrency level in turn; one summary per level (with
+    ``memory_every_s``, each with its memory samples and :func:`memory_trend`)."""
     if not 0 < duration_s <= MAX_DURATION_S:
         raise LoadTestError(f"duration must be in (0, {MAX_DURATION_S:g}] seconds")
     if not 1 <= max_requests <= MAX_REQUESTS:
@@ -493,7 +621,9 @@ async def run_ramp(
     test = LoadTest(http, settings, seed)
     await test.prepare()
     return [
-        await test.level(level, duration_s=duration_s, max_requests=max_requests)
+        await test.level(
+            level, duration_s=duration_s, max_requests=max_requests, memory_every_s=memory_every_s
+        )
         for level in levels
     ]
 
@@ -529,7 +659,31 @@ def format_table(levels: Sequence[dict[str, Any]]) -> str:
             memory = level["memory_bytes"]
             lines.append(f"  memory before: {_mib(memory['before'])}")
             lines.append(f"  memory after:  {_mib(memory['after'])}")
+        if "soak" in level:
+            lines += format_soak(level["soak"])
     return "\n".join(lines)
+
+
+def format_soak(trend: dict[str, Any]) -> list[str]:
+    """A soak's memory (:func:`memory_trend`) as text lines."""
+    if not trend["reported"]:
+        return [f"  soak memory: not reported ({trend['samples']} samples)"]
+    mib = 2**20
+    verdict = "GREW" if trend["grew"] else "flat"
+    lines = [
+        f"  soak memory ({trend['samples']} samples): {verdict}: start {trend['start'] / mib:.0f}"
+        f" MiB, end {trend['end'] / mib:.0f} MiB, max {trend['max'] / mib:.0f} MiB, growth "
+        f"{trend['growth'] / mib:+.1f} MiB, trend {trend['slope_per_min'] / mib:+.1f} MiB/min; "
+        f"second half {trend['settled_growth'] / mib:+.1f} MiB, trend "
+        f"{trend['settled_slope_per_min'] / mib:+.1f} MiB/min "
+        f"(idle before the load: {trend['idle'] / mib:.0f} MiB)"
+    ]
+    for name, memory in trend["by_process"].items():
+        lines.append(
+            f"    {name:<12} start {memory['start'] / mib:6.0f}  end {memory['end'] / mib:6.0f}"
+            f"  max {memory['max'] / mib:6.0f} MiB"
+        )
+    return lines
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -538,7 +692,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         "levels: throughput, p50/p99 latency and errors per kind, /health p50/p99, memory."
     )
     parser.add_argument("--url", default="http://127.0.0.1:8000")
-    parser.add_argument("--concurrency", default=DEFAULT_LEVELS, help="levels, e.g. 1,4,16,64")
+    parser.add_argument(
+        "--concurrency", default=None, help=f"levels, e.g. {DEFAULT_LEVELS} (the default)"
+    )
     parser.add_argument("--duration", type=float, default=20.0, help="seconds per level")
     parser.add_argument("--requests", type=int, default=MAX_REQUESTS, help="at most, per level")
     parser.add_argument("--mix", default=DEFAULT_MIX, help=f"kind weights ({DEFAULT_MIX})")
@@ -547,9 +703,30 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--roadmap-nodes", type=int, default=300, help="jump roadmap size")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    parser.add_argument(
+        "--soak",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help=f"hold one level (--concurrency, else {SOAK_CONCURRENCY}) this long, reading the "
+        "server's memory: start, end, max, growth, and whether it grew",
+    )
+    parser.add_argument(
+        "--sample-every",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help=f"a soak's memory sampling period ({SOAK_SAMPLE_EVERY_S:g}, at most the soak)",
+    )
     args = parser.parse_args(argv)
 
     async def go() -> list[dict[str, Any]]:
+        if args.soak is not None:
+            level, memory_every_s = parse_soak(args.soak, args.concurrency, args.sample_every)
+            levels, duration_s = [level], args.soak
+        else:
+            levels = parse_levels(args.concurrency or DEFAULT_LEVELS)
+            duration_s, memory_every_s = args.duration, None
         settings = Settings(
             mix=parse_mix(args.mix),
             game_length=args.game_length,
@@ -559,11 +736,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         async with httpx.AsyncClient(base_url=args.url, timeout=args.timeout) as http:
             return await run_ramp(
                 http,
-                levels=parse_levels(args.concurrency),
-                duration_s=args.duration,
+                levels=levels,
+                duration_s=duration_s,
                 max_requests=args.requests,
                 settings=settings,
                 seed=args.seed,
+                memory_every_s=memory_every_s,
             )
 
     try:

@@ -218,7 +218,8 @@ class SceneStorage(Collector):
     def collect(self) -> Iterable[GaugeMetricFamily]:
         yield GaugeMetricFamily(
             "gecko_scenes_stored_bytes",
-            "Bytes the uploaded scenes take in the scenes directory (shared by every worker).",
+            "Bytes the uploaded scenes take on disk, cached BVHs included (shared by every "
+            "worker).",
             value=float(self._used()),
         )
         yield GaugeMetricFamily(

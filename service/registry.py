@@ -2,9 +2,12 @@
 
 Uploaded scenes are stored in the scenes directory as ``<id>.npz`` (float64 vertices, int64
 faces), ``<id>.json`` (name and summary: counts and bounds, so listings never load a scene) and
-``<id>.detail.json`` (details with surfaces, as the API answers them). All are written to
-temporary files and renamed into place, metadata last, so a failed upload leaves nothing
-behind. Together they are bounded by a quota; in memory, a few recently used ones are kept.
+``<id>.detail.json`` (details with surfaces, as the API answers them); building the scene also
+caches its BVH in the cache directory (``<id>-coal<version>.bvh``: the id is the mesh's content
+hash), the largest of its files by far (~550 bytes a triangle, some 15 times the mesh file).
+All are written to temporary files and renamed into place, metadata last, so a failed upload
+leaves nothing behind. Together, BVH included, they are bounded by a quota, and a DELETE
+removes them all; in memory, a few recently used ones are kept.
 """
 
 from __future__ import annotations
@@ -40,7 +43,7 @@ from planner.scene import (
     content_hash,
     load_builtin_scene,
 )
-from planner.scene.collision import bvh_cache_path
+from planner.scene.collision import bvh_cache_bytes, bvh_cache_path
 from planner.scene.io import validate_arrays
 from service.files import is_temporary
 
@@ -240,16 +243,17 @@ class Registry:
         return summary
 
     def uploaded_bytes(self) -> int:
-        """Bytes the uploaded scenes take in the scenes directory (meshes and metadata; the
-        temporary files of uploads in progress do not count)."""
+        """Bytes the uploaded scenes take on disk: their files in the scenes directory (mesh,
+        metadata, details) and their cached BVHs in the cache directory. The temporary files
+        of uploads in progress do not count, nor the BVH of a scene not yet listed."""
         total = 0
         for path in self.scenes_dir.iterdir():
             if is_temporary(path.name) or path.suffix not in (".npz", ".json"):
                 continue
-            try:
-                total += path.stat().st_size
-            except OSError:  # removed meanwhile
-                continue
+            total += _size(path)
+            scene_id = path.name.removesuffix(".json")
+            if path.suffix == ".json" and _is_safe_id(scene_id):  # metadata: a listed scene
+                total += _size(bvh_cache_path(self.cache_dir, scene_id))
         return total
 
     def add_uploaded_scene(
@@ -266,9 +270,11 @@ class Registry:
         The id is a content hash of the mesh, so uploading the same mesh twice gives one id
         (and takes no more room). ``describe(scene)``, when given, is the scene's details
         (JSON text) stored beside it for :meth:`stored_detail`. ``quota_bytes`` bounds
-        :meth:`uploaded_bytes` after the write: the mesh file is written and measured before
-        surfaces and BVH are built, and the check is repeated under a lock shared by every
-        process before the files are renamed into place. Raises :class:`QuotaExceeded`.
+        :meth:`uploaded_bytes` after the write: the mesh file is written and measured, and the
+        BVH's size foreseen from the counts (:func:`bvh_cache_bytes`), before surfaces and BVH
+        are built; the check is repeated with the files' real sizes, BVH included, under a
+        lock shared by every process before the files are renamed into place (a refused
+        scene's BVH is removed again). Raises :class:`QuotaExceeded`.
         ``keep=False``: the new scene is not held in memory (a process that only stores).
         """
         vertices, faces = validate_arrays(mesh.vertices, mesh.faces)
@@ -284,8 +290,10 @@ class Registry:
         written = [mesh_tmp]
         try:
             mesh_bytes = mesh_tmp.stat().st_size
+            bvh_file = bvh_cache_path(self.cache_dir, scene_id)
             if quota_bytes is not None:
-                self._check_quota(quota_bytes, mesh_bytes + META_ALLOWANCE_BYTES)
+                bvh_bytes = _size(bvh_file) or bvh_cache_bytes(len(faces), len(vertices))
+                self._check_quota(quota_bytes, mesh_bytes + META_ALLOWANCE_BYTES + bvh_bytes)
             scene = build_scene(mesh, scene_id=scene_id, name=name, cache_dir=self.cache_dir)
             files = {self._mesh_file(scene_id): mesh_tmp}
             if describe is not None:
@@ -300,10 +308,11 @@ class Registry:
             files[self._meta_file(scene_id)] = meta_tmp
             with _scenes_lock(self.scenes_dir):
                 if quota_bytes is not None:
+                    adding = sum(_size(path) for path in (*written, bvh_file))
                     try:
-                        self._check_quota(quota_bytes, sum(p.stat().st_size for p in written))
+                        self._check_quota(quota_bytes, adding)
                     except QuotaExceeded:
-                        bvh_cache_path(self.cache_dir, scene.content_hash).unlink(missing_ok=True)
+                        bvh_file.unlink(missing_ok=True)
                         raise
                 for final, temporary in files.items():
                     os.replace(temporary, final)
@@ -443,6 +452,14 @@ def default_character_ids() -> list[str]:
 
 def _is_safe_id(identifier: str) -> bool:
     return identifier.isalnum() and len(identifier) <= 128
+
+
+def _size(path: Path) -> int:
+    """A file's size in bytes; 0 when it is not there (never written, or removed meanwhile)."""
+    try:
+        return path.stat().st_size
+    except OSError:
+        return 0
 
 
 @contextmanager

@@ -63,11 +63,12 @@ class Settings(BaseSettings):
         f"{VERTICES_PER_TRIANGLE} times as many vertices",
     )
     scenes_quota_bytes: int = Field(
-        default=512 * 1024 * 1024,
+        default=4 * 1024**3,
         ge=1024 * 1024,
         le=1024**4,
-        description="bytes all uploaded scenes may take in the scenes directory (mesh and "
-        "metadata files); an upload past it is refused with 507",
+        description="bytes all uploaded scenes may take on disk: their mesh, metadata and "
+        "details files in the scenes directory and their cached BVH (about 550 bytes a "
+        "triangle) in the cache directory; an upload past it is refused with 507",
     )
     scenes_cached: int = Field(
         default=8,

@@ -4,13 +4,15 @@ The service streams an upload's body to a temporary file in the scenes directory
 path to :func:`ingest_upload` in a worker process, so neither parsing nor building surfaces and
 the BVH ever holds the event loop (or /health). The work is ordered cheapest refusal first:
 
-1. the file's triangle and vertex counts, read from its header or glTF scene graph (after
-   instancing): over ``GECKO_MAX_TRIANGLES`` is a 413 before any array is built;
+1. the file's triangle and vertex counts, read from its header or its glTF or COLLADA scene
+   graph (after instancing): over ``GECKO_MAX_TRIANGLES`` is a 413 before any array is built;
 2. the parse and validation (``load_mesh``: 422 for corrupt, empty or non-finite meshes) and
    the triangle limit again on what was parsed (formats without a header count, polygons);
-3. the mesh file written and measured against ``GECKO_SCENES_QUOTA_BYTES`` (507), then
-   surfaces and BVH built, then the quota checked again under a lock and the files renamed
-   into place.
+3. the mesh file written and measured, with the BVH the scene will cache foreseen from its
+   counts, against ``GECKO_SCENES_QUOTA_BYTES`` (507), then surfaces and BVH built, then the
+   quota checked again with the real sizes (BVH included) under a lock and the files renamed
+   into place. The quota counts everything an uploaded scene stores, its BVH in the cache
+   directory too, and a DELETE removes all of it.
 """
 
 from __future__ import annotations
@@ -67,7 +69,7 @@ def check_counts(data: bytes, fmt: str, settings: Settings) -> None:
 
 
 def _instanced(fmt: str) -> str:
-    return " (after instancing)" if fmt in ("glb", "gltf") else ""
+    return " (after instancing)" if fmt in ("glb", "gltf", "dae") else ""
 
 
 def ingest_upload(body_path: str, fmt: str, name: str, y_up: bool) -> str:

@@ -43,6 +43,21 @@ def bvh_cache_path(cache_dir: Path, content_hash: str) -> Path:
     return Path(cache_dir) / f"{content_hash}-coal{_COAL_VERSION}.bvh"
 
 
+# coal's binary BVH file: a header, then per triangle 3 indices and per vertex 3 doubles
+# (8 bytes each), and a binary tree of 2 n - 1 OBBRSS nodes of 256 bytes for n triangles.
+_BVH_HEADER_BYTES = 256
+_BVH_BYTES_PER_TRIANGLE = 3 * 8 + 2 * 256
+_BVH_BYTES_PER_VERTEX = 3 * 8
+
+
+def bvh_cache_bytes(triangles: int, vertices: int) -> int:
+    """About how many bytes the cached BVH of a mesh of this size takes on disk (coal 3's
+    format: within a few hundred bytes), known before building it; ~550 bytes a triangle."""
+    return (
+        _BVH_HEADER_BYTES + _BVH_BYTES_PER_TRIANGLE * triangles + _BVH_BYTES_PER_VERTEX * vertices
+    )
+
+
 def build_bvh(vertices: FloatArray, faces: NDArray[np.int64]) -> Any:
     """A coal.BVHModelOBBRSS of the (n, 3) vertices and (m, 3) faces."""
     bvh = coal.BVHModelOBBRSS()

@@ -10,7 +10,12 @@ oversized file before any array is built:
 - OBJ: the ``v`` and ``f`` lines (a polygon counts as one triangle: a lower bound).
 - GLB / glTF: per mesh, the triangles of its primitives (from the accessors' ``count``), summed
   over the nodes of the scene graph that instance it, as trimesh flattens the scene.
-- DAE: not counted (None); the caller checks the parsed mesh instead.
+- DAE (COLLADA): the XML is read (no entities, no network) but not built into a scene: per
+  geometry, the triangles its ``triangles``, ``polylist`` and ``polygons`` hold (from their
+  index data, not their ``count`` attributes: a polygon of n corners is n - 2 triangles), summed
+  over the ``instance_geometry`` elements reachable from the scene, through nested nodes and
+  ``instance_node`` references (shared subtrees counted once per reference, as trimesh
+  flattens them); 3 vertices a triangle (trimesh copies each instance's corners).
 
 Counts read from headers are what the file claims; the parser still validates the data.
 """
@@ -22,6 +27,8 @@ import re
 import struct
 from dataclasses import dataclass
 from typing import Any
+
+from lxml import etree
 
 from planner.scene.errors import SceneError
 
@@ -50,7 +57,7 @@ class MeshCounts:
 
 def count_mesh(data: bytes, fmt: str) -> MeshCounts | None:
     """Counts of the mesh file ``data`` in format ``fmt`` (``stl``, ``ply``, ``obj``, ``glb``,
-    ``gltf``; None for ``dae``), without parsing its arrays.
+    ``gltf``, ``dae``), without parsing its arrays into a mesh.
 
     Raises SceneError (field ``mesh``) when the header or scene graph is unreadable, e.g. a
     GLB without its JSON chunk or a scene graph with a cycle.
@@ -66,6 +73,8 @@ def count_mesh(data: bytes, fmt: str) -> MeshCounts | None:
         return _count_gltf(_glb_json(data))
     if fmt == "gltf":
         return _count_gltf(_json_document(data, "glTF"))
+    if fmt == "dae":
+        return _count_collada(data)
     return None
 
 
@@ -157,3 +166,110 @@ def _reachable(nodes: list[dict[str, Any]], roots: list[int]) -> list[int]:
         order.append(index)
         stack.extend(int(child) for child in nodes[index].get("children", []))
     return order
+
+
+def _count_collada(data: bytes) -> MeshCounts:
+    """Triangles of a COLLADA document as trimesh flattens it (see the module's docstring)."""
+    parser = etree.XMLParser(
+        resolve_entities=False, no_network=True, load_dtd=False, huge_tree=True, recover=False
+    )
+    try:
+        root = etree.fromstring(data, parser)
+    except etree.XMLSyntaxError as exc:
+        raise SceneError(f"the DAE data is not readable XML: {exc}", "mesh") from exc
+    try:
+        geometries = {
+            element.get("id"): _collada_geometry_triangles(element)
+            for element in root.iter(_dae("geometry"))
+            if element.get("id")
+        }
+        nodes = {element.get("id"): element for element in root.iter(_dae("node"))}
+        scene = _collada_scene(root)
+        triangles = 0 if scene is None else _collada_node_triangles(scene, geometries, nodes, {})
+    except (KeyError, ValueError, RecursionError) as exc:
+        raise SceneError(f"the DAE scene graph is malformed: {exc}", "mesh") from exc
+    return MeshCounts(triangles, 3 * triangles)
+
+
+def _dae(tag: str) -> str:
+    """``tag`` in any namespace (COLLADA 1.4's, 1.5's or none), for lxml's iter and find."""
+    return "{*}" + tag
+
+
+def _local_name(element: Any) -> str:
+    """An element's tag without its namespace ('' for comments and processing instructions)."""
+    return etree.QName(element).localname if isinstance(element.tag, str) else ""
+
+
+def _collada_scene(root: Any) -> Any:
+    """The visual scene ``<scene><instance_visual_scene>`` names (trimesh loads that one), or
+    the first one; None without any."""
+    scenes = {element.get("id"): element for element in root.iter(_dae("visual_scene"))}
+    instance = root.find(f"{_dae('scene')}/{_dae('instance_visual_scene')}")
+    if instance is not None and instance.get("url", "").startswith("#"):
+        named = scenes.get(instance.get("url")[1:])
+        if named is not None:
+            return named
+    return next(iter(scenes.values()), None)
+
+
+def _collada_geometry_triangles(geometry: Any) -> int:
+    """Triangles of one ``<geometry>``'s mesh, counted from its index data."""
+    triangles = 0
+    for mesh in geometry.findall(_dae("mesh")):
+        for primitive in mesh:
+            kind = _local_name(primitive)
+            if kind not in ("triangles", "polylist", "polygons"):
+                continue  # lines, tristrips, trifans: trimesh reads no triangles from them
+            offsets = [int(i.get("offset", 0)) for i in primitive.findall(_dae("input"))]
+            stride = max(offsets, default=-1) + 1
+            if stride == 0:
+                continue
+            if kind == "triangles":
+                for p in primitive.findall(_dae("p")):
+                    triangles += _token_count(p.text) // (3 * stride)
+            elif kind == "polylist":
+                vcount = primitive.find(_dae("vcount"))
+                if vcount is not None and vcount.text:
+                    triangles += sum(max(int(v) - 2, 0) for v in vcount.text.split())
+            else:
+                for p in primitive.findall(_dae("p")):
+                    triangles += max(_token_count(p.text) // stride - 2, 0)
+    return triangles
+
+
+def _token_count(text: str | None) -> int:
+    return 0 if not text else len(text.split())
+
+
+def _collada_node_triangles(
+    node: Any, geometries: dict[str, int], nodes: dict[str, Any], counted: dict[Any, int]
+) -> int:
+    """Triangles below ``node`` (a visual scene or a node): its geometry instances, its child
+    nodes and the nodes it instances, each reference counted in full. ``counted`` holds the
+    totals of nodes done (a shared subtree is walked once); a node met again while being
+    counted is a cycle (ValueError). Keyed by the element itself: the dictionary keeps lxml's
+    proxy alive, so the key stays that node's."""
+    if node in counted:
+        if counted[node] < 0:
+            raise ValueError(f"node {node.get('id')!r} instances itself")
+        return counted[node]
+    counted[node] = -1
+    total = 0
+    for child in node:
+        kind = _local_name(child)
+        if kind == "instance_geometry":
+            total += geometries.get(_fragment(child.get("url", "")), 0)
+        elif kind == "instance_node":
+            target = nodes.get(_fragment(child.get("url", "")))
+            if target is not None:
+                total += _collada_node_triangles(target, geometries, nodes, counted)
+        elif kind == "node":
+            total += _collada_node_triangles(child, geometries, nodes, counted)
+    counted[node] = total
+    return total
+
+
+def _fragment(url: str) -> str:
+    """The id a local reference ``#id`` names ('' for other references)."""
+    return url[1:] if url.startswith("#") else ""

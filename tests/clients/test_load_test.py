@@ -13,13 +13,17 @@ import pytest
 
 from clients.http import GeckoClient, GeckoError
 from clients.load_test import (
+    MEMORY_GROWTH_BYTES,
+    SOAK_CONCURRENCY,
     LoadTestError,
     Settings,
     describe,
     format_table,
     main,
+    memory_trend,
     parse_levels,
     parse_mix,
+    parse_soak,
     percentile,
     retry_after_s,
     run_ramp,
@@ -190,3 +194,123 @@ async def _typed_client_errors(url: str) -> None:
 
 def test_typed_client_raises_envelope_errors(gecko_url: str) -> None:
     asyncio.run(_typed_client_errors(gecko_url))
+
+
+MiB = 2**20
+
+
+def test_a_soak_runs_one_level_and_checks_its_arguments() -> None:
+    assert parse_soak(60, None) == (SOAK_CONCURRENCY, 5.0)
+    assert parse_soak(60, "64", sample_every_s=2) == (64, 2.0)
+    assert parse_soak(2, "4") == (4, 2.0)  # a short soak: sampled at its end at least
+    assert parse_soak(0.2, "4") == (4, 0.5)
+    with pytest.raises(LoadTestError, match="one concurrency level, not 2"):
+        parse_soak(60, "16,64")
+    with pytest.raises(LoadTestError, match=r"--soak must be in \(0, 3600\]"):
+        parse_soak(0, None)
+    with pytest.raises(LoadTestError, match="--soak must be"):
+        parse_soak(float("nan"), None)
+    with pytest.raises(LoadTestError, match=r"--sample-every must be in \[0.5, 10\]"):
+        parse_soak(10, None, sample_every_s=20)
+    with pytest.raises(LoadTestError, match="--sample-every"):
+        parse_soak(10, None, sample_every_s=0.1)
+
+
+def test_a_soak_summary_says_whether_memory_grew() -> None:
+    idle = {"service": 100 * MiB}
+    flat = [
+        (0.0, idle),  # before the load: the compute processes start on demand
+        (5.0, {"service": 110 * MiB, "interactive": 600 * MiB}),
+        (10.0, {"service": 112 * MiB, "interactive": 640 * MiB}),
+        (15.0, {"service": 111 * MiB, "interactive": 605 * MiB}),
+    ]
+    trend = memory_trend(flat)
+    assert trend["reported"] and trend["samples"] == 4
+    assert trend["idle"] == 100 * MiB
+    assert trend["start"] == 710 * MiB and trend["end"] == 716 * MiB
+    assert trend["max"] == 752 * MiB and trend["growth"] == 6 * MiB
+    assert trend["grew"] is False
+    assert trend["by_process"]["interactive"] == {
+        "start": 600 * MiB,
+        "end": 605 * MiB,
+        "max": 640 * MiB,
+    }
+    assert trend["settled_growth"] == -36 * MiB  # from t = 10 s, the soak's second half
+    leaking = [(t, {"service": 100 * MiB + t * 8 * MiB}) for t in (0.0, 5.0, 10.0, 15.0)]
+    trend = memory_trend(leaking)
+    assert trend["growth"] == 80 * MiB and trend["settled_growth"] == 40 * MiB
+    assert trend["grew"] is True
+    assert trend["slope_per_min"] == pytest.approx(8 * 60 * MiB)
+    assert trend["settled_slope_per_min"] == pytest.approx(8 * 60 * MiB)
+    # A process started on demand early on (the first upload's) is warm-up, not a leak.
+    warming = [
+        (0.0, idle),
+        (5.0, {"service": 110 * MiB, "uploads": 0.0}),
+        (10.0, {"service": 110 * MiB, "uploads": 180 * MiB}),
+        (15.0, {"service": 111 * MiB, "uploads": 181 * MiB}),
+        (20.0, {"service": 111 * MiB, "uploads": 182 * MiB}),
+    ]
+    trend = memory_trend(warming)
+    assert trend["growth"] == 183 * MiB
+    assert trend["settled_growth"] == 3 * MiB < MEMORY_GROWTH_BYTES  # from t = 10 s
+    assert trend["grew"] is False
+    # Small growth is within the tolerance even on a small server.
+    assert (
+        memory_trend([(0, {"s": MiB}), (1, {"s": 2 * MiB}), (2, {"s": 3 * MiB})])["grew"] is False
+    )
+    unreported = memory_trend([(0.0, {}), (5.0, {}), (10.0, {})])
+    assert unreported == {"samples": 3, "reported": False, "grew": None}
+
+
+def test_a_soak_is_printed_with_its_memory_and_its_latencies() -> None:
+    samples = [
+        (0.0, {"service": 100 * MiB}),
+        (5.0, {"service": 120 * MiB}),
+        (9.0, {"service": 121 * MiB}),
+    ]
+    level = {
+        "concurrency": 16,
+        "seconds": 9.0,
+        "kinds": {
+            "step": {
+                "count": 90,
+                "ok": 88,
+                "per_second": 9.78,
+                "p50_ms": 800.0,
+                "p99_ms": 1900.0,
+                "errors": {"503": 2},
+                "error_examples": {"503": "queue_full: ..."},
+            }
+        },
+        "memory_bytes": {"before": samples[0][1], "after": samples[-1][1]},
+        "soak": memory_trend(samples),
+    }
+    table = format_table([level])
+    assert re.search(r"^  step +90 +88 +9.78 +800.0 +1900.0  503: 2$", table, re.MULTILINE), table
+    assert "soak memory (3 samples): flat: start 120 MiB, end 121 MiB, max 121 MiB" in table
+    assert "growth +1.0 MiB" in table and "(idle before the load: 100 MiB)" in table
+    assert "second half +1.0 MiB" in table
+    assert re.search(r"^    service +start +120  end +121  max +121 MiB$", table, re.MULTILINE)
+    unreported = {**level, "soak": memory_trend([(0.0, {}), (5.0, {})])}
+    assert "soak memory: not reported (2 samples)" in format_table([unreported])
+
+
+def test_the_soak_option_runs_one_level_with_memory_samples(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    server = ThreadingHTTPServer(("127.0.0.1", 0), _WrongServer)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        url = f"http://127.0.0.1:{server.server_address[1]}"
+        args = ["--url", url, "--soak", "1.5", "--sample-every", "0.5", "--mix", "list"]
+        code = main([*args, "--concurrency", "2", "--timeout", "10"])
+        assert main(["--url", url, "--soak", "1", "--concurrency", "1,2"]) == 2
+    finally:
+        server.shutdown()
+    captured = capsys.readouterr()
+    assert code == 0, captured.out
+    assert re.search(r"^concurrency 2 \(", captured.out, re.MULTILINE), captured.out
+    assert "concurrency 1" not in captured.out
+    assert re.search(r"soak memory: not reported \(\d+ samples\)", captured.out), captured.out
+    assert "a soak runs one concurrency level, not 2 ('1,2')" in captured.err

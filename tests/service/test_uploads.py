@@ -15,20 +15,24 @@ import time
 from collections.abc import AsyncIterator, Iterator
 from contextlib import asynccontextmanager
 from pathlib import Path
+from typing import Any
 
 import httpx
+import numpy as np
 import pytest
 import trimesh
 from asgi_lifespan import LifespanManager
 from fastapi import FastAPI
+from prometheus_client.parser import text_string_to_metric_families
 
-from planner.scene import load_mesh
+from planner.scene import content_hash, load_mesh
 from planner.scene.collision import bvh_cache_path
+from planner.scene.io import validate_arrays
 from service.app import create_app
 from service.registry import QuotaExceeded, Registry
 from service.settings import Settings
 from tests.live_server import live_server
-from tests.mesh_files import grid_mesh, grid_ply, instanced_glb
+from tests.mesh_files import grid_mesh, grid_ply, instanced_dae, instanced_glb
 from tests.paths import gecko_cache_dir
 from tests.prometheus_text import metric_samples, sample_value
 
@@ -36,7 +40,7 @@ HEALTH_LIMIT_S = 0.1  # /health must answer within this while uploads are parsed
 HEALTH_EVERY_S = 0.02
 MiB = 1024 * 1024
 HOUR_S = 3600.0
-QUOTA_BYTES = 4 * MiB  # the test servers' quota of uploaded scenes
+QUOTA_BYTES = 48 * MiB  # the test servers' quota of uploaded scenes (a 60k-triangle one: 34)
 SCENE_SUFFIXES = (".npz", ".json", ".detail.json")  # an uploaded scene's files
 
 
@@ -102,7 +106,7 @@ class HealthProbe:
 
 @pytest.fixture(scope="module")
 def upload_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, Path]]:
-    """A live server with small limits: 100,000 triangles, a 4 MiB quota of scenes."""
+    """A live server with small limits: 100,000 triangles, a 48 MiB quota of scenes."""
     home = tmp_path_factory.mktemp("gecko-uploads")
     with live_server(_settings(home)) as url:
         yield url, home / "scenes"
@@ -144,7 +148,8 @@ def test_the_quota_refuses_an_upload_and_delete_frees_it(
     upload_server: tuple[str, Path],
 ) -> None:
     url, scenes = upload_server
-    first, second = _grid_stl(60_000), _grid_stl(64_000)  # about 2.1 MiB stored each
+    # About 2.1 MiB of scene files each, and 32 MiB of cached BVH: one fits, not both.
+    first, second = _grid_stl(60_000), _grid_stl(64_000)
     with httpx.Client(base_url=url, timeout=120) as http:
         kept = http.post("/v1/scenes", params={"format": "stl", "name": "a"}, content=first)
         assert kept.status_code == 201, kept.text
@@ -158,12 +163,14 @@ def test_the_quota_refuses_an_upload_and_delete_frees_it(
         stored = metric_samples(url)
         assert sample_value(stored, "gecko_scenes_quota_bytes") == QUOTA_BYTES
         files = [scenes / f"{kept.json()['id']}{suffix}" for suffix in SCENE_SUFFIXES]
+        files.append(bvh_cache_path(gecko_cache_dir(), kept.json()["id"]))
         kept_bytes = sum(path.stat().st_size for path in files)
         assert http.delete(f"/v1/scenes/{kept.json()['id']}").status_code == 204
         freed = sample_value(stored, "gecko_scenes_stored_bytes") - sample_value(
             metric_samples(url), "gecko_scenes_stored_bytes"
         )
-        assert freed == kept_bytes > 2 * MiB
+        assert freed == kept_bytes > 30 * MiB
+        assert not any(path.exists() for path in files)
         again = http.post("/v1/scenes", params={"format": "stl"}, content=second)
         assert again.status_code == 201, again.text
         assert http.delete(f"/v1/scenes/{again.json()['id']}").status_code == 204
@@ -182,13 +189,48 @@ def test_a_ply_padded_with_vertices_is_refused_by_its_header(
     assert "400000 vertices" in message and "limit 300000" in message, message
 
 
-def test_a_mesh_over_the_limit_without_a_header_count_is_refused_after_parsing(
+def _quads_obj(side: int) -> bytes:
+    """An OBJ grid of ``side`` x ``side`` quads: its ``f`` lines count one triangle each, and
+    it parses into two per quad."""
+    lines = [f"v {0.1 * i} {0.1 * j} 0" for i in range(side + 1) for j in range(side + 1)]
+    for i in range(side):
+        for j in range(side):
+            a = i * (side + 1) + j + 1  # OBJ indices start at 1
+            lines.append(f"f {a} {a + side + 1} {a + side + 2} {a + 1}")
+    return "\n".join(lines).encode()
+
+
+def test_a_mesh_over_the_limit_its_header_undercounts_is_refused_after_parsing(
     upload_server: tuple[str, Path],
 ) -> None:
     url, _ = upload_server
-    body = grid_mesh(120_000).export(file_type="dae")  # COLLADA: no count before parsing
-    response = httpx.post(f"{url}/v1/scenes", params={"format": "dae"}, content=body, timeout=120)
-    assert "GECKO_MAX_TRIANGLES" in _error(response, 413, "too_large")
+    body = _quads_obj(240)  # 57,600 faces on its lines, 115,200 triangles parsed
+    response = httpx.post(f"{url}/v1/scenes", params={"format": "obj"}, content=body, timeout=120)
+    message = _error(response, 413, "too_large")
+    assert "mesh has 115200 triangles; limit 100000" in message, message
+    assert "GECKO_MAX_TRIANGLES" in message
+
+
+def test_an_instanced_dae_is_refused_by_its_scene_graph_and_one_within_the_limit_is_built(
+    upload_server: tuple[str, Path],
+) -> None:
+    url, scenes = upload_server
+    refused_body = instanced_dae(20, subdivisions=2, doublings=10)  # 6.5 M triangles in 13 KB
+    accepted_body = instanced_dae(3, subdivisions=2, doublings=2)  # 3,840 triangles
+    with HealthProbe(url) as probe, httpx.Client(base_url=url, timeout=120) as http:
+        time.sleep(5 * HEALTH_EVERY_S)
+        refused = http.post("/v1/scenes", params={"format": "dae"}, content=refused_body)
+        accepted = http.post("/v1/scenes", params={"format": "dae"}, content=accepted_body)
+        time.sleep(5 * HEALTH_EVERY_S)
+    message = _error(refused, 413, "too_large")
+    assert "the DAE file holds 6553600 triangles (after instancing)" in message, message
+    assert "limit 100000 (GECKO_MAX_TRIANGLES)" in message, message
+    assert not [path for path in scenes.iterdir() if path.name.startswith(".tmp-")]
+    assert accepted.status_code == 201, accepted.text
+    assert accepted.json()["triangle_count"] == 3 * 4 * 320
+    assert httpx.delete(f"{url}/v1/scenes/{accepted.json()['id']}", timeout=30).status_code == 204
+    assert not probe.failures
+    assert max(probe.latencies) < HEALTH_LIMIT_S, sorted(probe.latencies)[-5:]
 
 
 @asynccontextmanager
@@ -275,6 +317,73 @@ async def test_metadata_stored_before_summaries_is_upgraded_once(tmp_path: Path)
     assert stored["surface_count"] == len(created["surfaces"])
     detail_file = settings.scenes_path / f"{created['id']}.detail.json"
     assert json.loads(detail_file.read_text()) == created
+
+
+def _terrain_stl(triangles: int, seed: int) -> tuple[bytes, str]:
+    """A gently rolling grid of its own (no other test uploads it, so no other test shares
+    its cached BVH) as a binary STL, and the scene id the service will give it."""
+    mesh = grid_mesh(triangles)
+    heights = 0.02 * np.random.default_rng(seed).random(len(mesh.vertices))
+    mesh = trimesh.Trimesh(mesh.vertices + np.outer(heights, [0.0, 0.0, 1.0]), mesh.faces)
+    data = bytes(mesh.export(file_type="stl"))
+    return data, content_hash(*validate_arrays(*_parsed(data)))
+
+
+def _parsed(stl: bytes) -> tuple[np.ndarray, np.ndarray]:
+    mesh = load_mesh(stl, "stl")
+    return mesh.vertices, mesh.faces
+
+
+@pytest.mark.anyio
+async def test_the_quota_counts_each_scenes_cached_bvh_and_delete_frees_it(
+    tmp_path: Path,
+) -> None:
+    quota = MiB  # the smallest quota allowed
+    settings = _settings(tmp_path, scenes_quota_bytes=quota)
+    first, first_id = _terrain_stl(1000, seed=151)
+    second, second_id = _terrain_stl(1000, seed=152)
+    bvhs = [bvh_cache_path(settings.cache_path, scene_id) for scene_id in (first_id, second_id)]
+    async with _serve(settings) as (app, http):
+        registry: Registry = app.state.registry
+        kept = await http.post("/v1/scenes?format=stl&name=first", content=first)
+        assert kept.status_code == 201, kept.text
+        assert kept.json()["id"] == first_id
+        files = [settings.scenes_path / f"{first_id}{suffix}" for suffix in SCENE_SUFFIXES]
+        scene_files = sum(path.stat().st_size for path in files)
+        bvh_bytes = bvhs[0].stat().st_size
+        assert bvh_bytes > 10 * scene_files  # the BVH is most of what a scene stores
+        assert registry.uploaded_bytes() == scene_files + bvh_bytes
+        stored = sample_value(await _metrics(http), "gecko_scenes_stored_bytes")
+        assert stored == scene_files + bvh_bytes
+        # The second scene's files alone would fit (about as large as the first's); with
+        # its BVH they do not: refused before its BVH is built, nothing of it left.
+        assert 2 * scene_files + bvh_bytes < quota < 2 * (scene_files + bvh_bytes)
+        refused = await http.post("/v1/scenes?format=stl&name=second", content=second)
+        message = _error(refused, 507, "quota_exceeded")
+        assert "GECKO_SCENES_QUOTA_BYTES" in message and str(quota) in message, message
+        assert not bvhs[1].exists()
+        leftovers = sorted(path.name for path in settings.scenes_path.iterdir())
+        assert leftovers == sorted([".lock", *(path.name for path in files)])
+        assert (await http.delete(f"/v1/scenes/{first_id}")).status_code == 204
+        assert not any(path.exists() for path in (*files, bvhs[0]))
+        assert registry.uploaded_bytes() == 0
+        again = await http.post("/v1/scenes?format=stl&name=second", content=second)
+        assert again.status_code == 201, again.text
+        assert bvhs[1].is_file()
+        assert registry.uploaded_bytes() > bvhs[1].stat().st_size
+        assert (await http.delete(f"/v1/scenes/{second_id}")).status_code == 204
+        assert not bvhs[1].exists() and registry.uploaded_bytes() == 0
+
+
+async def _metrics(http: httpx.AsyncClient) -> dict[Any, float]:
+    """Every sample of the in-process app's /metrics, as :func:`metric_samples` gives them."""
+    response = await http.get("/metrics")
+    assert response.status_code == 200
+    return {
+        (sample.name, tuple(sorted(sample.labels.items()))): sample.value
+        for family in text_string_to_metric_families(response.text)
+        for sample in family.samples
+    }
 
 
 def test_loaded_uploaded_scenes_are_bounded_and_reload_on_use(tmp_path: Path) -> None:

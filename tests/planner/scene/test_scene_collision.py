@@ -10,7 +10,7 @@ import trimesh
 from planner.poses import normalize_quaternion, pose_matrix, poses_from, quaternion_to_matrix
 from planner.scene import CollisionWorld, Scene, build_scene
 from planner.scene.builtin import stairs_mesh
-from planner.scene.collision import bvh_cache_path
+from planner.scene.collision import bvh_cache_bytes, bvh_cache_path
 from planner.shapes import Box, Capsule, ConvexPolytope
 
 TOUCH_TOLERANCE = 1e-6
@@ -176,6 +176,19 @@ def test_bvh_cache_round_trip(tmp_path) -> None:
         third.collision.collides_many(box, poses), first.collision.collides_many(box, poses)
     )
     assert path.stat().st_size > 100
+
+
+def test_the_cached_bvh_size_is_foreseen_from_the_counts(tmp_path) -> None:
+    """The uploads' quota refuses a scene by its BVH's size before building it: the estimate
+    from the triangle and vertex counts must be the cached file's size, give or take a few
+    hundred bytes, from a tetrahedron to a mesh of thousands of triangles."""
+    meshes = [trimesh.creation.icosphere(subdivisions=k) for k in range(4)]
+    meshes += [stairs_mesh(), trimesh.creation.box(extents=(1.0, 2.0, 3.0))]
+    for mesh in meshes:
+        scene = build_scene(mesh, cache_dir=tmp_path)
+        real = bvh_cache_path(tmp_path, scene.content_hash).stat().st_size
+        foreseen = bvh_cache_bytes(len(scene.faces), len(scene.vertices))
+        assert abs(foreseen - real) <= 512, (len(scene.faces), foreseen, real)
 
 
 def test_scene_id_is_a_content_hash() -> None:

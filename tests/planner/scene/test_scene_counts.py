@@ -12,7 +12,7 @@ import trimesh
 from planner.scene import SceneError
 from planner.scene.builtin import stairs_mesh
 from planner.scene.counts import MeshCounts, count_mesh
-from tests.mesh_files import grid_mesh, grid_ply, instanced_glb
+from tests.mesh_files import grid_mesh, grid_ply, instanced_dae, instanced_glb
 
 
 def _parsed(data: bytes, fmt: str) -> trimesh.Trimesh:
@@ -92,5 +92,61 @@ def test_unreadable_headers_are_scene_errors(data: bytes, fmt: str) -> None:
         count_mesh(data, fmt)
 
 
-def test_dae_is_not_counted() -> None:
-    assert count_mesh(b"<COLLADA/>", "dae") is None
+@pytest.mark.parametrize(
+    ("instances", "doublings", "primitive"),
+    [(1, 0, "triangles"), (3, 0, "triangles"), (2, 3, "triangles"), (3, 2, "polylist")],
+)
+def test_a_dae_counts_every_instance_as_trimesh_flattens_it(
+    instances: int, doublings: int, primitive: str
+) -> None:
+    data = instanced_dae(instances, subdivisions=1, doublings=doublings, primitive=primitive)
+    triangles = instances * 2**doublings * 80  # an icosphere of 80 triangles
+    assert count_mesh(data, "dae") == MeshCounts(triangles, 3 * triangles)
+    assert len(_parsed(data, "dae").faces) == triangles
+
+
+def test_a_dae_exported_by_trimesh_is_counted() -> None:
+    data = stairs_mesh().export(file_type="dae")
+    assert count_mesh(data, "dae") == MeshCounts(
+        len(stairs_mesh().faces), 3 * len(stairs_mesh().faces)
+    )
+
+
+def test_a_small_dae_of_nested_instances_counts_millions_at_once() -> None:
+    data = instanced_dae(20, subdivisions=2, doublings=10)  # 320 triangles, 20 * 1024 times
+    assert len(data) < 20_000
+    assert count_mesh(data, "dae") == MeshCounts(20 * 1024 * 320, 3 * 20 * 1024 * 320)
+
+
+def test_a_dae_counts_its_index_data_not_its_count_attributes() -> None:
+    honest = instanced_dae(4, subdivisions=1)
+    lying = honest.replace(b'<triangles count="80">', b'<triangles count="1">')
+    assert lying != honest
+    assert count_mesh(lying, "dae") == count_mesh(honest, "dae") == MeshCounts(320, 960)
+
+
+_DAE_NS = b'xmlns="http://www.collada.org/2005/11/COLLADASchema"'
+
+
+@pytest.mark.parametrize(
+    "data",
+    [
+        b"<COLLADA",  # not XML
+        b"<COLLADA " + _DAE_NS + b"><library_nodes><node id='a'><instance_node url='#b'/></node>"
+        b"<node id='b'><instance_node url='#a'/></node></library_nodes><library_visual_scenes>"
+        b"<visual_scene id='s'><node><instance_node url='#a'/></node></visual_scene>"
+        b"</library_visual_scenes></COLLADA>",  # a cycle of instance_node references
+    ],
+)
+def test_unreadable_or_cyclic_dae_are_scene_errors(data: bytes) -> None:
+    with pytest.raises(SceneError):
+        count_mesh(data, "dae")
+
+
+def test_a_dae_without_a_scene_holds_nothing_and_entities_are_not_expanded() -> None:
+    assert count_mesh(b"<COLLADA " + _DAE_NS + b"/>", "dae") == MeshCounts(0, 0)
+    entity = (
+        b'<?xml version="1.0"?><!DOCTYPE COLLADA [<!ENTITY x SYSTEM "file:///etc/passwd">]>'
+        b"<COLLADA " + _DAE_NS + b"><asset><title>&x;</title></asset></COLLADA>"
+    )
+    assert count_mesh(entity, "dae") == MeshCounts(0, 0)
