@@ -205,3 +205,30 @@ def test_polygon_memory_answers_as_computed_anew() -> None:
         want = equilibrium.project_polygon(other)
         got = trajectory.equilibrium_polygon(other)
         assert np.array_equal(got.A, want.A) and np.array_equal(got.b, want.b)
+
+
+def test_remembered_generators_equal_fresh_ones() -> None:
+    """A phase's wrench generators, built from contacts remembered by content, equal the
+    generators computed anew, whichever phases came first; a contact differing in any field
+    gets its own."""
+    from trajectory import contacts
+
+    rng = np.random.default_rng(5)
+    phases = [random_phase(rng, k) for k in (3, 2, 4)]
+    pool = [c for p in phases for c in p.contacts]
+    fresh = {id(c): contacts.contact_generators(c) for c in pool}
+    contacts._GENERATORS.clear()
+    for order in (pool, pool[::-1]):
+        for k in range(1, len(order) + 1):
+            chosen = order[max(0, k - 3) : k]
+            got = ContactPhase(chosen).wrench_generators
+            assert np.array_equal(got, np.vstack([fresh[id(c)] for c in chosen]))
+            assert not got.flags.writeable
+    base = pool[0]
+    for other in (
+        Contact(base.points, base.normal, base.mu * 0.9),
+        Contact(base.points, base.normal, base.mu, 6),
+        Contact(base.points + 0.01, base.normal, base.mu),
+    ):
+        want = contacts.contact_generators(other)
+        assert np.array_equal(ContactPhase([other]).wrench_generators, want)
