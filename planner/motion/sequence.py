@@ -84,8 +84,35 @@ not make; None when there are none, or when re-planning would not leave the work
 given, built whole)."""
 
 
+_PER_STATE: dict[tuple[str, int, int], tuple[object, ContactState, object]] = {}
+_PER_STATE_KEPT = 4096  # (owner, state) answers remembered; all forgotten past this
+
+
+def _per_state(kind: str, owner: object, state: ContactState, make: Callable[[], Any]) -> Any:
+    """``make()`` for ``state`` (immutable) and ``owner`` (a character or its offline data),
+    remembered by identity: a plan's states are turned into phases again by every dynamic
+    window, trial build and re-plan."""
+    key = (kind, id(owner), id(state))
+    known = _PER_STATE.get(key)
+    if known is not None and known[0] is owner and known[1] is state:
+        return known[2]
+    value = make()
+    if len(_PER_STATE) >= _PER_STATE_KEPT:
+        _PER_STATE.clear()
+    _PER_STATE[key] = (owner, state, value)
+    return value
+
+
 def contact_phase(character: Character, state: ContactState) -> trajectory.ContactPhase:
-    """The trajectory-library phase of a state (its contact points, normals, frictions)."""
+    """The trajectory-library phase of a state (its contact points, normals, frictions),
+    remembered per state."""
+    phase: trajectory.ContactPhase = _per_state(
+        "phase", character, state, lambda: _contact_phase(character, state)
+    )
+    return phase
+
+
+def _contact_phase(character: Character, state: ContactState) -> trajectory.ContactPhase:
     contacts = [
         trajectory.Contact(points=c.points, normal=c.normal, mu=c.mu) for c in state.contacts
     ]
@@ -93,7 +120,15 @@ def contact_phase(character: Character, state: ContactState) -> trajectory.Conta
 
 
 def phase_kinematics(data: OfflineData, state: ContactState) -> trajectory.Halfspaces | None:
-    """K c <= k (world frame) from the COM polytopes of the state's effectors (2PAC Eq. 4)."""
+    """K c <= k (world frame) from the COM polytopes of the state's effectors (2PAC Eq. 4),
+    remembered per state."""
+    kinematics: trajectory.Halfspaces | None = _per_state(
+        "kinematics", data, state, lambda: _phase_kinematics(data, state)
+    )
+    return kinematics
+
+
+def _phase_kinematics(data: OfflineData, state: ContactState) -> trajectory.Halfspaces | None:
     constraints = []
     for contact in state.contacts:
         polytope = data.com_constraint(contact.limb).polytope
