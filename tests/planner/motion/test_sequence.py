@@ -157,7 +157,13 @@ def test_phases_remembered_per_state_equal_fresh_ones() -> None:
     ctx, states = _hexapod_steps()
     character, data = ctx.character, ctx.data
     fresh = [
-        (sequence._contact_phase(character, s), sequence._phase_kinematics(data, s)) for s in states
+        (
+            sequence._contact_phase(float(character.mass), s),
+            sequence._phase_kinematics(
+                s, [data.com_constraint(c.limb).polytope for c in s.contacts]
+            ),
+        )
+        for s in states
     ]
     sequence._PER_STATE.clear()
     copies = [ContactState(np.array(s.q), s.contacts) for s in states]
