@@ -475,11 +475,13 @@ def _window_curve(
     """
     best: tuple[BezierCurve, float, list[float]] | None = None
     after = att[1] if len(att) > 1 else goal
+    # where the window may be cut: the next phase's equilibrium and kinematic sets (once)
+    target_set = None if last else stack([w.eqs[j + len(att)], w.kins[j + len(att)]])
     for extra in range(MAX_EXTRA_ATTRACTORS + 1):
         fractions = np.arange(1, extra + 1) / (extra + 1)
         middle = att[0] + fractions[:, None] * (after - att[0])
         points = np.vstack([att[:1], middle, att[1:]])
-        found = _stretched_curve(w, state, points, att, goal, j, t, phase_start, last)
+        found = _stretched_curve(w, state, points, att, goal, j, t, phase_start, target_set)
         if found is not None and (best is None or found[0].t1 < best[0].t1):
             best = found
     return best
@@ -498,11 +500,13 @@ def _stretched_curve(
     j: int,
     t: float,
     phase_start: float,
-    last: bool,
+    target_set: Halfspaces | None,
 ) -> tuple[BezierCurve, float, list[float]] | None:
     """The window's curve through control points ``points`` (its attractors ``att`` among
     them), slowed down until each phase gets its minimum duration; None beyond
-    ``max_stretch`` times the nominal duration."""
+    ``max_stretch`` times the nominal duration. ``target_set``: the sets of the phase after
+    the window's last attractor, where the curve is cut (None: the last window, not cut)."""
+    last = target_set is None
     m = len(att)
     ctrl = np.vstack([state.position, points, goal])
     length = float(np.sum(np.linalg.norm(np.diff(ctrl, axis=0), axis=1)))
@@ -511,8 +515,7 @@ def _stretched_curve(
     for _ in range(8):
         curve = attractor_curve(state, BoundaryState(goal), points, duration, t)
         cut = curve.t1
-        if not last:
-            target_set = stack([w.eqs[j + m], w.kins[j + m]])
+        if target_set is not None:
             taus = np.linspace(0.6, 0.95, 15)
             inside = target_set.violation(curve(t + taus * duration)) <= 1e-9
             if np.any(inside):

@@ -7,6 +7,8 @@ and one friction coefficient mu. Each point contributes ``n_rays`` unit force ra
 
 from __future__ import annotations
 
+import threading
+from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -116,10 +118,40 @@ def contact_generators(contact: Contact) -> FloatArray:
     return out
 
 
+_GENERATORS: OrderedDict[bytes, FloatArray] = OrderedDict()
+_GENERATORS_KEPT = 4096  # contacts whose generators are remembered (a contact lasts phases)
+_GENERATORS_LOCK = threading.Lock()
+
+
+def _remembered_generators(contact: Contact) -> FloatArray:
+    """:func:`contact_generators` (read-only), remembered by the contact's content (its points,
+    normal, friction and rays): a contact held over several phases, or a phase built again,
+    reuses them."""
+    key = b"".join(
+        (
+            contact.points.tobytes(),
+            contact.normal.tobytes(),
+            np.array([contact.mu, contact.n_rays], dtype=np.float64).tobytes(),
+        )
+    )
+    with _GENERATORS_LOCK:
+        known = _GENERATORS.get(key)
+        if known is not None:
+            _GENERATORS.move_to_end(key)
+            return known
+    generators = contact_generators(contact)
+    generators.flags.writeable = False
+    with _GENERATORS_LOCK:
+        _GENERATORS[key] = generators
+        if len(_GENERATORS) > _GENERATORS_KEPT:
+            _GENERATORS.popitem(last=False)
+    return generators
+
+
 def _phase_generators(contacts: tuple[Contact, ...]) -> FloatArray:
     if not contacts:
         return np.zeros((0, 6))
-    return np.vstack([contact_generators(c) for c in contacts])
+    return np.vstack([_remembered_generators(c) for c in contacts])
 
 
 def gravity_wrench(mass: float, com: FloatArray, acc: FloatArray | None = None) -> FloatArray:

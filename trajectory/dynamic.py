@@ -274,11 +274,13 @@ def _fixed_rows(
     # kinematics hold on the control points (the curve lies in their convex hull, so along
     # the whole phase, a little conservative), keeping only the rows the box can reach;
     # KINEMATIC_SLACK absorbs round-off of the states' own COMs on the boundary
+    # built directly in CSR form: rows in order, each row's columns increasing (a box row
+    # has one entry, a kinematic row the three coordinates of one control point), which is
+    # the matrix COO -> CSR made from the same entries (a long window has millions of rows)
     data: list[FloatArray] = []
-    ri: list[NDArray[Any]] = []
     ci: list[NDArray[Any]] = []
+    counts: list[NDArray[Any]] = []  # entries per row
     bounds: list[FloatArray] = []
-    row = 0
     per_phase = (d + 1) * 3
     for j, kin in enumerate(kins):
         low = np.min(boxes[j], axis=0) - TRUST_RADIUS
@@ -286,9 +288,8 @@ def _fixed_rows(
         cols = np.arange(layout.point(j, 0), layout.point(j, 0) + per_phase)
         for sign in (1.0, -1.0):  # x <= high, -x <= -low
             data.append(np.full(per_phase, sign))
-            ri.append(np.arange(row, row + per_phase))
             ci.append(cols)
-            row += per_phase
+            counts.append(np.ones(per_phase, dtype=np.int64))
         bounds += [np.tile(high, d + 1), -np.tile(low, d + 1)]
         if kin is None or kin.A.shape[0] == 0:
             continue
@@ -300,18 +301,19 @@ def _fixed_rows(
             continue
         # the k rows for each control point in turn: (d + 1) k rows of 3 entries
         data.append(np.tile(a_rows.ravel(), d + 1))
-        ri.append(np.repeat(np.arange(row, row + (d + 1) * k), 3))
         ci.append(np.repeat(cols.reshape(d + 1, 3), k, axis=0).ravel())
+        counts.append(np.full((d + 1) * k, 3, dtype=np.int64))
         bounds += [b_rows + KINEMATIC_SLACK] * (d + 1)
-        row += (d + 1) * k
     margin = np.arange(layout.n_curve, layout.n)
     data.append(-np.ones(margin.size))
-    ri.append(np.arange(row, row + margin.size))
     ci.append(margin)
-    row += margin.size
-    in_rows = sparse.coo_matrix(
-        (np.concatenate(data), (np.concatenate(ri), np.concatenate(ci))), shape=(row, layout.n)
-    ).tocsr()
+    counts.append(np.ones(margin.size, dtype=np.int64))
+    per_row = np.concatenate(counts)
+    indptr = np.zeros(per_row.size + 1, dtype=np.int64)
+    np.cumsum(per_row, out=indptr[1:])
+    in_rows = sparse.csr_matrix(
+        (np.concatenate(data), np.concatenate(ci), indptr), shape=(per_row.size, layout.n)
+    )
     in_rhs = np.concatenate(bounds) if bounds else np.zeros(0)
     return eq, np.asarray(rhs), in_rows, in_rhs
 

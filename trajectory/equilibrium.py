@@ -14,7 +14,10 @@ projection), E (4, m) force and z-moment rows, L (2, m) map to the COM (x, y), u
 
 from __future__ import annotations
 
+import hashlib
 import math
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -278,8 +281,45 @@ def _point_rows(p: FloatArray) -> _Edges:
     return n, n @ p
 
 
+_POLYGONS: OrderedDict[bytes, Halfspaces] = OrderedDict()
+_POLYGONS_KEPT = 512  # phases whose polygon is remembered (a plan's states, a few times over)
+_POLYGONS_LOCK = threading.Lock()
+
+
+def _phase_key(phase: ContactPhase) -> bytes:
+    """A digest of what :func:`project_polygon` reads: the phase's wrench generators, its
+    contact points and the tolerances of the projection."""
+    digest = hashlib.blake2b(digest_size=20)
+    digest.update(np.array([TOL.force_bound, TOL.polygon]).tobytes())
+    for array in (phase.wrench_generators, *(c.points for c in phase.contacts)):
+        a = np.ascontiguousarray(array, dtype=np.float64)
+        digest.update(str(a.shape).encode())
+        digest.update(a.tobytes())
+    return digest.digest()
+
+
 def equilibrium_polygon(phase: ContactPhase) -> Halfspaces:
-    """2D static-equilibrium region of the COM (x, y) as Halfspaces with unit rows, world frame."""
+    """2D static-equilibrium region of the COM (x, y) as Halfspaces with unit rows, world frame.
+
+    :func:`project_polygon`, remembered by content for the last ``_POLYGONS_KEPT`` phases
+    (a plan asks again for its states' polygons: contact checks, 2PAC, the motion); the
+    answer is read-only."""
+    key = _phase_key(phase)
+    with _POLYGONS_LOCK:
+        known = _POLYGONS.get(key)
+        if known is not None:
+            _POLYGONS.move_to_end(key)
+            return known
+    polygon = project_polygon(phase)
+    with _POLYGONS_LOCK:
+        _POLYGONS[key] = polygon
+        if len(_POLYGONS) > _POLYGONS_KEPT:
+            _POLYGONS.popitem(last=False)
+    return polygon
+
+
+def project_polygon(phase: ContactPhase) -> Halfspaces:
+    """:func:`equilibrium_polygon` computed anew (no memory: for benchmarks)."""
     if not phase.contacts:
         return Halfspaces(_EMPTY_A[:, :2], _EMPTY_B)
     E, L, origin = _projection_data(phase)

@@ -8,6 +8,7 @@ Workspaces are tested against a BVH of the allowed surface triangles only, never
 
 from __future__ import annotations
 
+import hashlib
 from collections import OrderedDict
 from collections.abc import Collection, Mapping, Sequence
 
@@ -98,6 +99,7 @@ def _fibonacci_sphere(k: int) -> FloatArray:
 
 
 _SIMPLIFIED: OrderedDict[tuple[int, int], tuple[ConvexPolytope, ConvexPolytope]] = OrderedDict()
+_SIMPLIFIED_BY_CONTENT: OrderedDict[tuple[bytes, int], ConvexPolytope] = OrderedDict()
 _SIMPLIFIED_KEPT = 64  # workspaces whose simplification is remembered (a few characters' limbs)
 
 
@@ -107,23 +109,71 @@ def simplified_workspace(workspace: ConvexPolytope, directions: int) -> ConvexPo
 
     Remembered per workspace object: a checker is built for every standing state, and a
     workspace of points on a sphere (a sit bone turning about the hip) keeps all its 1e5
-    samples as vertices."""
+    samples as vertices. Also remembered by content (its arrays), for the same
+    workspace loaded again (offline data read anew for another plan)."""
     key = (id(workspace), directions)
     known = _SIMPLIFIED.get(key)
     if known is not None and known[0] is workspace:
         _SIMPLIFIED.move_to_end(key)
         return known[1]
-    simplified = _simplify(workspace, directions)
+    content = (_content_key(workspace), directions)
+    simplified = _SIMPLIFIED_BY_CONTENT.get(content)
+    if simplified is None:
+        simplified = _simplify(workspace, directions)
+        _SIMPLIFIED_BY_CONTENT[content] = simplified
+        if len(_SIMPLIFIED_BY_CONTENT) > _SIMPLIFIED_KEPT:
+            _SIMPLIFIED_BY_CONTENT.popitem(last=False)
+    else:
+        _SIMPLIFIED_BY_CONTENT.move_to_end(content)
     _SIMPLIFIED[key] = (workspace, simplified)
     if len(_SIMPLIFIED) > _SIMPLIFIED_KEPT:
         _SIMPLIFIED.popitem(last=False)
     return simplified
 
 
+def _content_key(workspace: ConvexPolytope) -> bytes:
+    """A digest of ``workspace``'s arrays (vertices, half-spaces, offset): equal digests, an
+    equal simplification (:func:`_simplify` may answer the workspace itself)."""
+    digest = hashlib.blake2b(digest_size=20)
+    for array in (workspace.vertices, workspace.A, workspace.b, workspace.offset):
+        a = np.ascontiguousarray(array, dtype=np.float64)
+        digest.update(str(a.shape).encode())
+        digest.update(a.tobytes())
+    return digest.digest()
+
+
+SUPPORT_CHUNK = 4096
+"""Vertices whose products with the directions are taken at a time by :func:`support_indices`
+(a (chunk, directions) block stays in cache; the whole product of 1e5 vertices is 77 MB)."""
+
+
+def support_indices(vertices: FloatArray, directions: FloatArray) -> IntArray:
+    """(k,) per direction of ``directions`` (k, 3), the index of the first of ``vertices``
+    (n, 3) with the largest product: ``np.argmax(vertices @ directions.T, axis=0)``, the same
+    products compared, taken ``SUPPORT_CHUNK`` vertices at a time (an earlier chunk keeps a
+    tie, as argmax keeps the first)."""
+    transposed = directions.T
+    if len(vertices) <= SUPPORT_CHUNK:
+        return np.asarray(np.argmax(vertices @ transposed, axis=0), dtype=np.int64)
+    best = np.full(len(directions), -np.inf)
+    index = np.zeros(len(directions), dtype=np.int64)
+    for start in range(0, len(vertices), SUPPORT_CHUNK):
+        products = vertices[start : start + SUPPORT_CHUNK] @ transposed
+        top = products.max(axis=0)
+        rows, cols = np.nonzero(products == top)  # row-major: each column's first row first
+        _, first = np.unique(cols, return_index=True)
+        if len(first) != len(top):  # a column without its maximum: nan products
+            return np.asarray(np.argmax(vertices @ transposed, axis=0), dtype=np.int64)
+        better = top > best
+        best[better] = top[better]
+        index[better] = rows[first][better] + start
+    return index
+
+
 def _simplify(workspace: ConvexPolytope, directions: int) -> ConvexPolytope:
     if directions <= 0 or directions >= len(workspace.vertices):
         return workspace
-    support = np.argmax(workspace.vertices @ _fibonacci_sphere(directions).T, axis=0)
+    support = support_indices(workspace.vertices, _fibonacci_sphere(directions))
     chosen = workspace.vertices[np.unique(support)]
     if len(chosen) < 4:
         return workspace

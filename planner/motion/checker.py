@@ -125,11 +125,18 @@ class KeyframeChecker:
             if -d > deepest:
                 deepest, shape = -d, name
         self_depth = 0.0
-        for k in self.broad.near_at(poses, 0.0):
-            pin.computeDistance(self.geometry, self.geometry_data, k)
-            d = float(self.geometry_data.distanceResults[k].min_distance)
-            self.broad.remember(k, d)
-            self_depth = max(self_depth, -d)
+        near = self.broad.near_at(poses, 0.0)
+        if near:
+            measured = []
+            results = None
+            for k in near:
+                pin.computeDistance(self.geometry, self.geometry_data, k)
+                if results is None:
+                    results = self.geometry_data.distanceResults
+                d = float(results[k].min_distance)
+                measured.append(d)
+                self_depth = max(self_depth, -d)
+            self.broad.remember_all(near, measured)
         return KeyframeCheck(deepest, shape, self_depth, hold)
 
     def depths(self, q: FloatArray, limbs: Sequence[str]) -> dict[int, float]:

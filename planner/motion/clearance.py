@@ -448,6 +448,14 @@ class PairBroadPhase:
         self.known[k] = distance
         self.known_odometers[k] = self.odometer[self.pair_array[k]]
 
+    def remember_all(self, pairs: Sequence[int], distances: Sequence[float]) -> None:
+        """:meth:`remember` of each of ``pairs`` (distinct) at its distance, in one go."""
+        if not pairs:
+            return
+        index = np.asarray(pairs, dtype=np.int64)
+        self.known[index] = distances
+        self.known_odometers[index] = self.odometer[self.pair_array[index]]
+
 
 class SelfClearance(Limit):  # type: ignore[misc]
     """Body shapes kept apart: the collision pairs declared in the character's geometry
@@ -483,28 +491,37 @@ class SelfClearance(Limit):  # type: ignore[misc]
         with ``jacobians`` read at the same kinematics."""
         near = self.broad.near_at(poses, tuning.INFLUENCE_DISTANCE)
         # per pair within the influence distance: its joints, witness points, normal (from
-        # a to b) and distance
+        # a to b) and distance; every pair's distance is remembered after the loop
         joints: list[int] = []
         points: list[FloatArray] = []
         normals: list[FloatArray] = []
         distances: list[float] = []
+        measured: list[float] = []
+        influence = tuning.INFLUENCE_DISTANCE
+        compute, geometry, results = pin.computeDistance, self.geometry, None
+        pairs, joint_of = self.pairs, self.joints
         for k in near:
-            a, b = self.pairs[k]
-            pin.computeDistance(self.geometry, geometry_data, k)
-            result = geometry_data.distanceResults[k]
+            compute(geometry, geometry_data, k)
+            if results is None:
+                results = geometry_data.distanceResults
+            result = results[k]
             d = float(result.min_distance)
-            self.broad.remember(k, d)
-            if d > tuning.INFLUENCE_DISTANCE:
+            measured.append(d)
+            if d > influence:
                 continue
-            joints += [self.joints[a], self.joints[b]]
-            points += [np.array(result.getNearestPoint1()), np.array(result.getNearestPoint2())]
-            normal = np.array(result.normal)
+            a, b = pairs[k]
+            joints += [joint_of[a], joint_of[b]]
+            points += [result.getNearestPoint1(), result.getNearestPoint2()]
+            normal = result.normal
             normals += [normal, normal]
             distances.append(d)
+        self.broad.remember_all(near, measured)
         self.rows = len(distances)
         if not distances:
             return None
-        speeds = jacobians.along(joints, np.array(points), np.array(normals))
+        speeds = jacobians.along(
+            joints, np.array(points, dtype=np.float64), np.array(normals, dtype=np.float64)
+        )
         gap = np.array(distances)
         return _damper_rows(
             speeds[1::2] - speeds[0::2], gap, np.full(len(gap), tuning.SECURITY_DISTANCE)

@@ -84,19 +84,59 @@ not make; None when there are none, or when re-planning would not leave the work
 given, built whole)."""
 
 
+_PER_STATE: dict[tuple[object, ...], tuple[Any, ...]] = {}
+_PER_STATE_KEPT = 4096  # answers remembered; all forgotten past this
+
+
+def _per_state(key: tuple[object, ...], inputs: tuple[Any, ...], make: Callable[[], Any]) -> Any:
+    """``make()``, remembered under ``key`` (the ids of the immutable ``inputs`` it reads, and
+    plain values) while the same objects are given: a plan's states are turned into phases
+    again by every dynamic window, trial build and re-plan. Only the inputs themselves are
+    kept (a state, an effector's polytope), not what holds them."""
+    known = _PER_STATE.get(key)
+    if known is not None and all(a is b for a, b in zip(known[:-1], inputs, strict=True)):
+        return known[-1]
+    value = make()
+    if len(_PER_STATE) >= _PER_STATE_KEPT:
+        _PER_STATE.clear()
+    _PER_STATE[key] = (*inputs, value)
+    return value
+
+
 def contact_phase(character: Character, state: ContactState) -> trajectory.ContactPhase:
-    """The trajectory-library phase of a state (its contact points, normals, frictions)."""
+    """The trajectory-library phase of a state (its contact points, normals, frictions),
+    remembered per state object."""
+    mass = float(character.mass)
+    phase: trajectory.ContactPhase = _per_state(
+        ("phase", id(state), mass), (state,), lambda: _contact_phase(mass, state)
+    )
+    return phase
+
+
+def _contact_phase(mass: float, state: ContactState) -> trajectory.ContactPhase:
     contacts = [
         trajectory.Contact(points=c.points, normal=c.normal, mu=c.mu) for c in state.contacts
     ]
-    return trajectory.ContactPhase(contacts=contacts, mass=float(character.mass))
+    return trajectory.ContactPhase(contacts=contacts, mass=mass)
 
 
 def phase_kinematics(data: OfflineData, state: ContactState) -> trajectory.Halfspaces | None:
-    """K c <= k (world frame) from the COM polytopes of the state's effectors (2PAC Eq. 4)."""
+    """K c <= k (world frame) from the COM polytopes of the state's effectors (2PAC Eq. 4),
+    remembered per state object and polytopes."""
+    polytopes = tuple(data.com_constraint(c.limb).polytope for c in state.contacts)
+    kinematics: trajectory.Halfspaces | None = _per_state(
+        ("kinematics", id(state), *map(id, polytopes)),
+        (state, *polytopes),
+        lambda: _phase_kinematics(state, polytopes),
+    )
+    return kinematics
+
+
+def _phase_kinematics(
+    state: ContactState, polytopes: Sequence[Any]
+) -> trajectory.Halfspaces | None:
     constraints = []
-    for contact in state.contacts:
-        polytope = data.com_constraint(contact.limb).polytope
+    for contact, polytope in zip(state.contacts, polytopes, strict=True):
         constraints.append(
             trajectory.EffectorConstraint(
                 halfspaces=trajectory.Halfspaces(polytope.A, polytope.b),

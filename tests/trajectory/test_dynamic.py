@@ -291,3 +291,53 @@ def test_a_run_without_refinement_that_does_not_settle_is_run_again_refined(
     assert runs[:2] == [False, True] and retried is not None and refined is not None
     for a, b in zip(retried.curve.segments, refined.curve.segments, strict=True):
         np.testing.assert_array_equal(a.control_points, b.control_points)
+
+
+def test_the_inequality_rows_are_the_box_kinematic_and_margin_rows_in_order() -> None:
+    """``_fixed_rows``'s inequalities (built directly in CSR form) row by row: per phase the
+    trust box (x <= high, then -x <= -low), then each control point's reachable kinematic
+    rows, then the weights' margins; canonical (sorted columns, no duplicates)."""
+    from trajectory import dynamic
+
+    phases, _, start, end = _walk(3, 0.6, 0.4)
+    d, samples = 5, 4
+    layout = dynamic._Layout(phases, d, samples)
+    times = np.array([0.0, 0.4, 1.0, 1.4])
+    rng = np.random.default_rng(2)
+    normals = rng.normal(size=(6, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    kin = Halfspaces(normals, normals @ start + 0.05)
+    kins = [kin, None, kin]
+    boxes = [start + rng.normal(0.0, 0.05, (samples, 3)) for _ in phases]
+    head, tail = np.tile(start, (3, 1)), np.tile(end, (3, 1))
+    _, _, rows, rhs = dynamic._fixed_rows(layout, times, head, tail, d, kins, boxes)
+    expected: list[np.ndarray] = []
+    bounds: list[float] = []
+    for j, kin_j in enumerate(kins):
+        low = boxes[j].min(axis=0) - dynamic.TRUST_RADIUS
+        high = boxes[j].max(axis=0) + dynamic.TRUST_RADIUS
+        for sign, edge in ((1.0, high), (-1.0, -low)):
+            for i in range(d + 1):
+                for axis in range(3):
+                    row = np.zeros(layout.n)
+                    row[layout.point(j, i) + axis] = sign
+                    expected.append(row)
+                    bounds.append(float(edge[axis]))
+        if kin_j is None:
+            continue
+        centre, half = 0.5 * (low + high), 0.5 * (high - low)
+        keep = kin_j.A @ centre + np.abs(kin_j.A) @ half > kin_j.b + dynamic.KINEMATIC_SLACK
+        for i in range(d + 1):
+            for a, b in zip(kin_j.A[keep], kin_j.b[keep], strict=True):
+                row = np.zeros(layout.n)
+                row[layout.point(j, i) : layout.point(j, i) + 3] = a
+                expected.append(row)
+                bounds.append(float(b + dynamic.KINEMATIC_SLACK))
+    for col in range(layout.n_curve, layout.n):
+        row = np.zeros(layout.n)
+        row[col] = -1.0
+        expected.append(row)
+    assert rows.shape == (len(expected), layout.n)
+    assert np.array_equal(rows.toarray(), np.array(expected))
+    assert np.array_equal(rhs, np.array(bounds))
+    assert rows.has_canonical_format

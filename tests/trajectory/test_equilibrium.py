@@ -174,3 +174,61 @@ def test_validation_errors() -> None:
         ContactPhase([], mass=0.0)
     with pytest.raises(ValueError, match="com"):
         trajectory.is_static_equilibrium(ContactPhase([]), np.zeros(2))
+
+
+def test_polygon_memory_answers_as_computed_anew() -> None:
+    """Remembered polygons equal fresh projections, cold or warm, in any order; a phase
+    equal in content (another object) shares the answer; any change of a contact is a new
+    phase; the answer is read-only."""
+    from trajectory import equilibrium
+
+    rng = np.random.default_rng(11)
+    phases = [random_phase(rng, k) for k in (1, 2, 3, 2)]
+    fresh = [equilibrium.project_polygon(p) for p in phases]
+    equilibrium._POLYGONS.clear()
+    for order in ([0, 1, 2, 3], [3, 2, 1, 0, 2]):
+        for i in order:
+            got = trajectory.equilibrium_polygon(phases[i])
+            assert np.array_equal(got.A, fresh[i].A) and np.array_equal(got.b, fresh[i].b)
+            assert not got.A.flags.writeable and not got.b.flags.writeable
+    same = ContactPhase(
+        [Contact(c.points.copy(), c.normal.copy(), c.mu) for c in phases[1].contacts],
+        phases[1].mass,
+    )
+    assert trajectory.equilibrium_polygon(same) is trajectory.equilibrium_polygon(phases[1])
+    first = phases[0].contacts[0]
+    moved = ContactPhase(
+        [Contact(first.points + np.array([0.01, 0.0, 0.0]), first.normal, first.mu)]
+    )
+    slippery = ContactPhase([Contact(first.points, first.normal, 0.5 * first.mu)])
+    for other in (moved, slippery):
+        want = equilibrium.project_polygon(other)
+        got = trajectory.equilibrium_polygon(other)
+        assert np.array_equal(got.A, want.A) and np.array_equal(got.b, want.b)
+
+
+def test_remembered_generators_equal_fresh_ones() -> None:
+    """A phase's wrench generators, built from contacts remembered by content, equal the
+    generators computed anew, whichever phases came first; a contact differing in any field
+    gets its own."""
+    from trajectory import contacts
+
+    rng = np.random.default_rng(5)
+    phases = [random_phase(rng, k) for k in (3, 2, 4)]
+    pool = [c for p in phases for c in p.contacts]
+    fresh = {id(c): contacts.contact_generators(c) for c in pool}
+    contacts._GENERATORS.clear()
+    for order in (pool, pool[::-1]):
+        for k in range(1, len(order) + 1):
+            chosen = order[max(0, k - 3) : k]
+            got = ContactPhase(chosen).wrench_generators
+            assert np.array_equal(got, np.vstack([fresh[id(c)] for c in chosen]))
+            assert not got.flags.writeable
+    base = pool[0]
+    for other in (
+        Contact(base.points, base.normal, base.mu * 0.9),
+        Contact(base.points, base.normal, base.mu, 6),
+        Contact(base.points + 0.01, base.normal, base.mu),
+    ):
+        want = contacts.contact_generators(other)
+        assert np.array_equal(ContactPhase([other]).wrench_generators, want)

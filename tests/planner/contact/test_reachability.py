@@ -155,3 +155,44 @@ def test_sampler_orientation_bounds_and_near() -> None:
     reach = max(float(np.linalg.norm(v[:2])) for v in check.offsets.values())
     assert np.all(np.linalg.norm(close[:, :2, 3] - near[:2], axis=1) <= 0.4 + reach + 1e-9)
     assert sample_root_poses(check, 0, rng=np.random.default_rng(0)).shape == (0, 4, 4)
+
+
+@pytest.mark.parametrize("n", [10, 4096, 4097, 20000])
+def test_support_indices_equal_argmax(n: int) -> None:
+    """The chunked support points are argmax's over the whole product, ties included."""
+    from planner.contact.reachability import _fibonacci_sphere, support_indices
+
+    rng = np.random.default_rng(n)
+    directions = _fibonacci_sphere(96)
+    sphere = rng.normal(size=(n, 3))
+    sphere /= np.linalg.norm(sphere, axis=1, keepdims=True)
+    # exact ties across and within chunks: the first of equal vertices is the support
+    tied = np.concatenate([sphere, sphere[::-1], np.round(sphere, 1)])
+    for vertices in (sphere, tied):
+        expected = np.argmax(vertices @ directions.T, axis=0)
+        assert np.array_equal(support_indices(vertices, directions), expected)
+
+
+def test_simplified_workspace_cached_by_content() -> None:
+    """A workspace loaded again (another object, the same arrays) gets the same
+    simplification, cold cache or warm, in any order."""
+    from planner.contact import reachability
+    from planner.shapes import ConvexPolytope
+
+    rng = np.random.default_rng(3)
+    points = rng.normal(size=(6000, 3))
+    points /= np.linalg.norm(points, axis=1, keepdims=True)
+    first = ConvexPolytope.from_points(points)
+    again = ConvexPolytope(first.vertices.copy(), first.A.copy(), first.b.copy())
+    other = ConvexPolytope.from_points(0.5 * points)
+    cold = reachability._simplify(first, 96)
+    reachability._SIMPLIFIED.clear()
+    reachability._SIMPLIFIED_BY_CONTENT.clear()
+    for workspace in (first, other, again, first):
+        got = reachability.simplified_workspace(workspace, 96)
+        want = cold if workspace is not other else reachability._simplify(other, 96)
+        assert np.array_equal(got.vertices, want.vertices)
+        assert np.array_equal(got.A, want.A) and np.array_equal(got.b, want.b)
+    assert reachability.simplified_workspace(again, 96) is reachability.simplified_workspace(
+        first, 96
+    )

@@ -122,3 +122,27 @@ def test_few_segment_distances_match_the_batched_ones() -> None:
     np.testing.assert_allclose(
         few_segment_distances(*ends), segment_distances(*ends), rtol=0.0, atol=1e-12
     )
+
+
+def test_pairs_remembered_together_as_one_by_one() -> None:
+    """The broad phase's ``remember_all`` leaves it as ``remember`` of each pair in turn
+    does: the same pairs near at the next placements, the same bounds kept."""
+    character = get_character("talos")
+    model, geometry = character.model, character.motion_geometry
+    data, gdata = model.createData(), pin.GeometryData(geometry)
+    for request in gdata.distanceRequests:
+        request.enable_signed_distance = True
+    alone, together = PairBroadPhase(geometry), PairBroadPhase(geometry)
+    for q in _walk(character, 40, 2):
+        pin.forwardKinematics(model, data, q)
+        pin.updateGeometryPlacements(model, data, geometry, gdata)
+        near = alone.near(gdata, 0.05)
+        assert together.near(gdata, 0.05) == near
+        measured = []
+        for k in near:
+            pin.computeDistance(geometry, gdata, k)
+            measured.append(float(gdata.distanceResults[k].min_distance))
+            alone.remember(k, measured[-1])
+        together.remember_all(near, measured)
+        assert np.array_equal(alone.known, together.known)
+        assert np.array_equal(alone.known_odometers, together.known_odometers)

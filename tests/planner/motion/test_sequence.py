@@ -146,3 +146,34 @@ def test_a_window_that_stops_joins_the_dynamic_curve_at_rest() -> None:
         np.testing.assert_allclose(
             segments[j].control_points, earlier.curve.segments[j].control_points, atol=1e-12
         )
+
+
+def test_phases_remembered_per_state_equal_fresh_ones() -> None:
+    """A state's contact phase and kinematic polytope, remembered per state object, equal
+    those built anew, cold or warm, in any order; an equal state (another object) is built
+    anew alike."""
+    from planner.motion import sequence
+
+    ctx, states = _hexapod_steps()
+    character, data = ctx.character, ctx.data
+    fresh = [
+        (
+            sequence._contact_phase(float(character.mass), s),
+            sequence._phase_kinematics(
+                s, [data.com_constraint(c.limb).polytope for c in s.contacts]
+            ),
+        )
+        for s in states
+    ]
+    sequence._PER_STATE.clear()
+    copies = [ContactState(np.array(s.q), s.contacts) for s in states]
+    for order in (range(len(states)), reversed(range(len(states)))):
+        for i in order:
+            for state in (states[i], copies[i]):
+                phase = contact_phase(character, state)
+                kin = sequence.phase_kinematics(data, state)
+                assert np.array_equal(phase.wrench_generators, fresh[i][0].wrench_generators)
+                assert kin is not None and fresh[i][1] is not None
+                assert np.array_equal(kin.A, fresh[i][1].A)
+                assert np.array_equal(kin.b, fresh[i][1].b)
+    assert contact_phase(character, states[0]) is contact_phase(character, states[0])
