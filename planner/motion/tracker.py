@@ -95,20 +95,30 @@ class StepTargets:
 
 def effector_geometries(character: Character) -> dict[str, frozenset[int]]:
     """Per limb, the collision shapes (geometry indices) of its effector: those on the
-    effector frame's joint and its descendants (they touch the surface in contact)."""
+    effector frame and the frames rigidly attached below it (a foot link after a fixed
+    joint); when none carries a shape, those of the nearest frame above it on the same joint
+    that does (a sole frame under the foot link). The rest of the limb (a shin) is checked
+    against the scene like any other link, in stance too."""
     model = character.model
+    frames = model.frames
+    shapes_of: dict[int, set[int]] = {}
+    for i, o in enumerate(character.motion_geometry.geometryObjects):
+        shapes_of.setdefault(int(o.parentFrame), set()).add(i)
     out = {}
     for limb in character.limbs:
-        joint = int(model.frames[limb.frame_id].parentJoint)
-        subtree = {joint}
-        for j in range(joint + 1, model.njoints):
-            if int(model.parents[j]) in subtree:
-                subtree.add(j)
-        out[limb.name] = frozenset(
-            i
-            for i, o in enumerate(character.motion_geometry.geometryObjects)
-            if o.parentJoint in subtree
-        )
+        frame = int(limb.frame_id)
+        joint = int(frames[frame].parentJoint)
+        below = {frame}
+        for k in range(frame + 1, len(frames)):
+            if int(frames[k].parentFrame) in below and int(frames[k].parentJoint) == joint:
+                below.add(k)
+        found = set().union(*(shapes_of.get(k, set()) for k in below))
+        up = frame
+        while not found and up > 0 and int(frames[up].parentJoint) == joint:
+            up = int(frames[up].parentFrame)
+            if int(frames[up].parentJoint) == joint:
+                found = shapes_of.get(up, set())
+        out[limb.name] = frozenset(found)
     return out
 
 
