@@ -7,13 +7,12 @@ and one friction coefficient mu. Each point contributes ``n_rays`` unit force ra
 
 from __future__ import annotations
 
-import threading
-from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from trajectory._memo import Remembered
 from trajectory._types import GRAVITY, FloatArray, as_float_array
 
 
@@ -118,9 +117,7 @@ def contact_generators(contact: Contact) -> FloatArray:
     return out
 
 
-_GENERATORS: OrderedDict[bytes, FloatArray] = OrderedDict()
-_GENERATORS_KEPT = 4096  # contacts whose generators are remembered (a contact lasts phases)
-_GENERATORS_LOCK = threading.Lock()
+_GENERATORS: Remembered[FloatArray] = Remembered(4096)  # a contact lasts phases
 
 
 def _remembered_generators(contact: Contact) -> FloatArray:
@@ -134,18 +131,12 @@ def _remembered_generators(contact: Contact) -> FloatArray:
             np.array([contact.mu, contact.n_rays], dtype=np.float64).tobytes(),
         )
     )
-    with _GENERATORS_LOCK:
-        known = _GENERATORS.get(key)
-        if known is not None:
-            _GENERATORS.move_to_end(key)
-            return known
-    generators = contact_generators(contact)
-    generators.flags.writeable = False
-    with _GENERATORS_LOCK:
-        _GENERATORS[key] = generators
-        if len(_GENERATORS) > _GENERATORS_KEPT:
-            _GENERATORS.popitem(last=False)
-    return generators
+    return _GENERATORS.get(key, lambda: _read_only(contact_generators(contact)))
+
+
+def _read_only(array: FloatArray) -> FloatArray:
+    array.flags.writeable = False
+    return array
 
 
 def _phase_generators(contacts: tuple[Contact, ...]) -> FloatArray:

@@ -16,13 +16,12 @@ from __future__ import annotations
 
 import hashlib
 import math
-import threading
-from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
 
 from trajectory import _solvers
+from trajectory._memo import Remembered
 from trajectory._types import GRAVITY, TOL, BoolArray, FloatArray
 from trajectory.contacts import ContactPhase, gravity_wrench
 from trajectory.polytope import Halfspaces
@@ -281,9 +280,8 @@ def _point_rows(p: FloatArray) -> _Edges:
     return n, n @ p
 
 
-_POLYGONS: OrderedDict[bytes, Halfspaces] = OrderedDict()
 _POLYGONS_KEPT = 512  # phases whose polygon is remembered (a plan's states, a few times over)
-_POLYGONS_LOCK = threading.Lock()
+_POLYGONS: Remembered[Halfspaces] = Remembered(_POLYGONS_KEPT)
 
 
 def _phase_key(phase: ContactPhase) -> bytes:
@@ -305,17 +303,7 @@ def equilibrium_polygon(phase: ContactPhase) -> Halfspaces:
     (a plan asks again for its states' polygons: contact checks, 2PAC, the motion); the
     answer is read-only."""
     key = _phase_key(phase)
-    with _POLYGONS_LOCK:
-        known = _POLYGONS.get(key)
-        if known is not None:
-            _POLYGONS.move_to_end(key)
-            return known
-    polygon = project_polygon(phase)
-    with _POLYGONS_LOCK:
-        _POLYGONS[key] = polygon
-        if len(_POLYGONS) > _POLYGONS_KEPT:
-            _POLYGONS.popitem(last=False)
-    return polygon
+    return _POLYGONS.get(key, lambda: project_polygon(phase))
 
 
 def project_polygon(phase: ContactPhase) -> Halfspaces:

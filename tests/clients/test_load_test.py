@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import re
 import threading
+from collections.abc import Iterator
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from typing import Any
 
@@ -107,18 +109,24 @@ class _WrongServer(BaseHTTPRequestHandler):
         pass
 
 
-def test_wrong_answers_are_counted_with_their_type_and_text(
-    capsys: pytest.CaptureFixture[str],
-) -> None:
+@contextlib.contextmanager
+def _wrong_server() -> Iterator[str]:
+    """The URL of a ``_WrongServer`` serving in a thread, shut down on exit."""
     server = ThreadingHTTPServer(("127.0.0.1", 0), _WrongServer)
     thread = threading.Thread(target=server.serve_forever, daemon=True)
     thread.start()
     try:
-        url = f"http://127.0.0.1:{server.server_address[1]}"
-        args = ["--url", url, "--concurrency", "1,2", "--duration", "1", "--timeout", "10"]
-        code = main([*args, "--mix", "step,plan,upload,list", "--seed", "3"])
+        yield f"http://127.0.0.1:{server.server_address[1]}"
     finally:
         server.shutdown()
+
+
+def test_wrong_answers_are_counted_with_their_type_and_text(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    with _wrong_server() as url:
+        args = ["--url", url, "--concurrency", "1,2", "--duration", "1", "--timeout", "10"]
+        code = main([*args, "--mix", "step,plan,upload,list", "--seed", "3"])
     out = capsys.readouterr().out
     assert code == 1, out  # some requests failed; the run itself did not
     assert re.search(r"^  step +\d+ +0 .*exception: \d+", out, re.MULTILINE), out
@@ -298,16 +306,10 @@ def test_a_soak_is_printed_with_its_memory_and_its_latencies() -> None:
 def test_the_soak_option_runs_one_level_with_memory_samples(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    server = ThreadingHTTPServer(("127.0.0.1", 0), _WrongServer)
-    thread = threading.Thread(target=server.serve_forever, daemon=True)
-    thread.start()
-    try:
-        url = f"http://127.0.0.1:{server.server_address[1]}"
+    with _wrong_server() as url:
         args = ["--url", url, "--soak", "1.5", "--sample-every", "0.5", "--mix", "list"]
         code = main([*args, "--concurrency", "2", "--timeout", "10"])
         assert main(["--url", url, "--soak", "1", "--concurrency", "1,2"]) == 2
-    finally:
-        server.shutdown()
     captured = capsys.readouterr()
     assert code == 0, captured.out
     assert re.search(r"^concurrency 2 \(", captured.out, re.MULTILINE), captured.out
