@@ -530,6 +530,21 @@ def _com_method(methods: Sequence[str]) -> str:
     return "2pac" if all(m == "2pac" for m in methods) else "2pac+rest_to_rest"
 
 
+@dataclass(frozen=True, slots=True)
+class _Trial:
+    """A trial build (abandoned at its first unclean phase) and what it animated: the
+    dynamic curve, the factors on the brisk durations, the states, 2PAC's curve through
+    them and the phases stopping at rest."""
+
+    built: BuiltMotion
+    dynamic: trajectory.DynamicCom
+    factors: list[float]
+    states: list[ContactState]
+    reference: trajectory.ComTrajectory
+    attractors: list[dict[str, object]]
+    resting: set[int]
+
+
 def sequence_motion(
     character: Character,
     data: OfflineData,
@@ -635,6 +650,7 @@ def sequence_motion(
             )
             trials.append(dynamic_refused)
     keep: tuple[BuiltMotion, int] | None = None
+    last: _Trial | None = None  # the last trial build, and what it was built from
     replans: list[str] = []
     original = (states, com_trajectory, attractor_report)
 
@@ -716,6 +732,15 @@ def sequence_motion(
         times_d = np.asarray(dynamic.phase_times, dtype=np.float64)
         candidate = build(dynamic.curve, times_d, trial=True, resume=keep)
         unplayable = candidate.report.shortfall()  # says why a trial was abandoned
+        last = _Trial(
+            candidate,
+            dynamic,
+            list(factors_tried),
+            list(states),
+            com_trajectory,
+            attractor_report,
+            set(resting),
+        )
         if unplayable is None or candidate.report.cut_short:
             if replans and unplayable is not None:
                 break  # cut short after re-planning: 2PAC's curve, built whole, is kept
@@ -793,12 +818,27 @@ def sequence_motion(
         # dynamic curve that did not come clean are undone)
         states, com_trajectory, attractor_report = original
         n, phases_tr = len(states), [contact_phase(character, s) for s in states]
-        if replans:
-            replans.append("no clean dynamic curve with the re-planned changes: all undone")
         curve = com_trajectory.curve
         times = np.asarray(com_trajectory.phase_times, dtype=np.float64)
         methods = com_trajectory.phase_methods
         built = build(curve, times)
+        if last is not None and last.built.report.phases_animated > built.report.phases_animated:
+            # the work ran out before 2PAC's curve got as far as the last trial: that trial
+            # (clean up to the phase it was abandoned at) is the answer
+            built, factors = last.built, last.factors
+            states, com_trajectory, attractor_report = last.states, last.reference, last.attractors
+            n, phases_tr = len(states), [contact_phase(character, s) for s in states]
+            curve = last.dynamic.curve
+            times = np.asarray(last.dynamic.phase_times, dtype=np.float64)
+            methods = tuple(
+                "rest_to_rest" if j in last.resting else "2pac+dynamic" for j in range(n)
+            )
+            trials.append(
+                "the work ran out before 2PAC's curve was animated as far as the last trial: "
+                f"that trial's {built.report.phases_animated} phases are kept"
+            )
+        elif replans:
+            replans.append("no clean dynamic curve with the re-planned changes: all undone")
     reports = trajectory.validate_dynamics(curve, phases_tr, times)
     report: dict[str, object] = {
         **built.report.as_dict(),
