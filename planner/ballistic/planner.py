@@ -664,6 +664,22 @@ class RoadmapStore:
         meta = json.loads(self.path(roadmap_id).with_suffix(".json").read_text())
         return JumpParams.from_json(meta["params"])
 
+    def delete_of_scene(self, scene_id: str) -> int:
+        """Remove every stored roadmap built on scene ``scene_id`` (its info names the scene):
+        the .npz first (the roadmap is no longer ready), then its info. Returns how many."""
+        removed = 0
+        for meta in sorted(self.directory.glob("*.json")):
+            try:
+                scene = json.loads(meta.read_text()).get("scene")
+            except (OSError, ValueError):
+                continue  # being written, or not a roadmap's info
+            if scene != scene_id:
+                continue
+            meta.with_suffix(".npz").unlink(missing_ok=True)
+            meta.unlink(missing_ok=True)
+            removed += 1
+        return removed
+
     def save(self, roadmap_id: str, roadmap: Roadmap, meta: dict[str, Any]) -> None:
         """Store a roadmap atomically (the .json first, then the .npz that marks it ready)."""
         self.directory.mkdir(parents=True, exist_ok=True)

@@ -129,12 +129,15 @@ async def create_roadmap(
 @router.get("/roadmaps/{roadmap_id}", responses={404: _ERRORS[404], 503: STORE_BUSY})
 async def get_roadmap(roadmap_id: str, request: Request, settings: SettingsDep) -> RoadmapStatus:
     """Status (queued, running, done, failed, cancelled, interrupted), progress in [0, 1]
-    and size."""
+    and size; 404 for an unknown roadmap, or one removed with the scene it was built on."""
     rid = _roadmap_id(roadmap_id)
     done = await to_thread.run_sync(_done, RoadmapStore(settings.roadmaps_path), rid)
     if done is not None:
         return done
-    return _from_job(await find_job(request, rid, "roadmap_id"))
+    job = await find_job(request, rid, "roadmap_id")
+    if job.state == "done":  # built, then removed with the scene it was built on
+        raise not_found("roadmap", rid, "roadmap_id")
+    return _from_job(job)
 
 
 @router.delete("/roadmaps/{roadmap_id}", responses=CANCEL_RESPONSES)

@@ -14,6 +14,7 @@ from fastapi import APIRouter, Query, Request
 from fastapi.responses import Response
 from starlette.status import HTTP_204_NO_CONTENT
 
+from planner.ballistic.planner import RoadmapStore
 from planner.export import SceneMesh
 from planner.scene import Scene
 from service import convert
@@ -126,14 +127,17 @@ async def get_scene(
         403: {"model": ErrorBody, "description": "built-in scenes cannot be deleted"},
     },
 )
-async def delete_scene(scene_id: str, registry: RegistryDep) -> Response:
-    """Delete an uploaded scene: its mesh, metadata and collision cache. Requests naming it
-    then get 404; stored results that used it stay readable (their GLB without the scene)."""
+async def delete_scene(scene_id: str, registry: RegistryDep, settings: SettingsDep) -> Response:
+    """Delete an uploaded scene: its mesh, metadata and collision cache, and the jump
+    roadmaps built on it. Requests naming it then get 404; stored results that used it stay
+    readable (their GLB without the scene)."""
     if registry.is_builtin(scene_id):
         message = f"scene '{scene_id}' is built in; only uploaded scenes can be deleted"
         raise ApiError(403, "builtin_scene", message, "scene_id")
     if not await to_thread.run_sync(registry.delete_uploaded_scene, scene_id):
         raise not_found("scene", scene_id, "scene_id")
+    store = RoadmapStore(settings.roadmaps_path)
+    await to_thread.run_sync(store.delete_of_scene, scene_id)
     return Response(status_code=HTTP_204_NO_CONTENT)
 
 

@@ -7,6 +7,7 @@ files; the only timing asserted is /health's, the figure the service promises un
 
 from __future__ import annotations
 
+import asyncio
 import io
 import json
 import os
@@ -423,3 +424,28 @@ def test_delete_frees_quota_memory_and_the_cached_bvh(tmp_path: Path) -> None:
     assert not bvh_cache_path(cache, first.content_hash).exists()
     second = registry.add_uploaded_scene(load_mesh(_box_stl(2.0), "stl"), "b", quota_bytes=MiB)
     assert registry.scene_summary(second.id) is not None
+
+
+@pytest.mark.anyio
+async def test_deleting_a_scene_removes_the_roadmaps_built_on_it(tmp_path: Path) -> None:
+    settings = _settings(tmp_path)
+    terrain, scene_id = _terrain_stl(1000, seed=153)
+    async with _serve(settings) as (_, http):
+        uploaded = await http.post("/v1/scenes?format=stl&name=ground", content=terrain)
+        assert uploaded.status_code == 201, uploaded.text
+        request = {"character": "humanoid", "scene": scene_id, "nodes": 20, "seed": 3}
+        built = await http.post("/v1/roadmaps", json=request)
+        assert built.status_code in (200, 202), built.text
+        rid = built.json()["id"]
+        for _ in range(600):
+            status = (await http.get(f"/v1/roadmaps/{rid}")).json()
+            if status["status"] != "queued" and status["status"] != "running":
+                break
+            await asyncio.sleep(0.2)
+        assert status["status"] == "done", status
+        files = [settings.roadmaps_path / f"{rid}{suffix}" for suffix in (".npz", ".json")]
+        assert all(path.is_file() for path in files)
+        assert (await http.delete(f"/v1/scenes/{scene_id}")).status_code == 204
+        assert not any(path.exists() for path in files)
+        gone = await http.get(f"/v1/roadmaps/{rid}")
+        assert gone.status_code == 404, gone.text
