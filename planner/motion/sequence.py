@@ -313,7 +313,9 @@ def redo_window(
     """``earlier``'s curve with the phases of ``window`` [lo, hi) found again, each lasting
     :func:`dynamic_durations` times ``factors[j]``, joined C2 to the phases before (kept as
     they are) and after (kept, shifted in time by what the window gained); None when no
-    window curve passes Eq. 1."""
+    window curve passes Eq. 1. A window running to the end of ``states`` keeps nothing of
+    ``earlier`` after it (``states`` may then differ from ``earlier``'s from ``lo`` on: a
+    re-planned suffix)."""
     lo, hi = window
     found = _dynamic_window(
         character, data, states, reference, speed, factors, lo, hi, earlier.curve.segments
@@ -321,19 +323,19 @@ def redo_window(
     if found is None or not found.valid:
         return None
     old = earlier.phase_times
-    shift = float(found.phase_times[-1]) - float(old[hi] - old[lo])
     segments = list(earlier.curve.segments[:lo])
     segments += [
         trajectory.BezierCurve(seg.control_points, seg.t0 + old[lo], seg.t1 + old[lo])
         for seg in found.curve.segments
     ]
-    segments += [
-        trajectory.BezierCurve(seg.control_points, seg.t0 + shift, seg.t1 + shift)
-        for seg in earlier.curve.segments[hi:]
-    ]
-    times = np.concatenate(
-        [old[: lo + 1], old[lo] + np.asarray(found.phase_times[1:]), old[hi + 1 :] + shift]
-    )
+    times = np.concatenate([old[: lo + 1], old[lo] + np.asarray(found.phase_times[1:])])
+    if hi < len(states):
+        shift = float(found.phase_times[-1]) - float(old[hi] - old[lo])
+        segments += [
+            trajectory.BezierCurve(seg.control_points, seg.t0 + shift, seg.t1 + shift)
+            for seg in earlier.curve.segments[hi:]
+        ]
+        times = np.concatenate([times, old[hi + 1 :] + shift])
     return trajectory.DynamicCom(
         trajectory.PiecewiseBezier(tuple(segments)), times, found.iterations, True
     )
@@ -679,35 +681,18 @@ def sequence_motion(
         new_com, new_attractors = timed_com(
             character, data, new_states, timing, swing_durations(character, new_states, speed)
         )
-        used: list[float] | None = [*factors_tried[:lo], *[levels[0]] * (len(new_states) - lo)]
-        found: trajectory.DynamicCom | None = None
-        while used is not None:
-            found = _dynamic_window(
-                character,
-                data,
-                new_states,
-                new_com,
-                speed,
-                used,
-                lo,
-                len(new_states),
-                dynamic.curve.segments,
+        end = len(new_states)
+        used: list[float] | None = [*factors_tried[:lo], *[levels[0]] * (end - lo)]
+        spliced: trajectory.DynamicCom | None = None
+        while used is not None and spliced is None:
+            spliced = redo_window(
+                character, data, new_states, new_com, dynamic, used, (lo, end), speed
             )
-            if found is not None and found.valid:
-                break
-            found, used = None, _slower(used, lo, len(new_states), levels)
-        if found is None or used is None:
+            if spliced is None:
+                used = _slower(used, lo, end, levels)
+        if spliced is None or used is None:
             trials.append(f"phases {same} on re-planned: no dynamic curve joins them")
             return None
-        old = dynamic.phase_times
-        segments = [
-            *dynamic.curve.segments[:lo],
-            *(
-                trajectory.BezierCurve(seg.control_points, seg.t0 + old[lo], seg.t1 + old[lo])
-                for seg in found.curve.segments
-            ),
-        ]
-        times = np.concatenate([old[: lo + 1], old[lo] + np.asarray(found.phase_times[1:])])
         replans.append(
             f"phase {bad} could not be played: the contact changes from state {same} on "
             f"were planned again ({len(states) - same} states replaced by "
@@ -717,9 +702,6 @@ def sequence_motion(
         phases_tr = [contact_phase(character, s) for s in states]
         com_trajectory, attractor_report = new_com, new_attractors
         resting.difference_update([j for j in resting if j >= lo])
-        spliced = trajectory.DynamicCom(
-            trajectory.PiecewiseBezier(tuple(segments)), times, found.iterations, True
-        )
         return spliced, used, lo
 
     builds = max(tuning.DYNAMIC_MAX_BUILDS, math.ceil(tuning.DYNAMIC_BUILDS_PER_PHASE * n))
