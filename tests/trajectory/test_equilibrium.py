@@ -232,3 +232,26 @@ def test_remembered_generators_equal_fresh_ones() -> None:
     ):
         want = contacts.contact_generators(other)
         assert np.array_equal(ContactPhase([other]).wrench_generators, want)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), k=st.integers(1, 4))
+def test_support_point_lp_agrees_with_highs(seed: int, k: int) -> None:
+    """The support LP's primal answer through daqp (used where the dual's is not certified)
+    reaches HiGHS' optimum in every direction, and says the same about the force bound."""
+    from trajectory._types import TOL
+    from trajectory.equilibrium import _projection_data, _Support
+
+    rng = np.random.default_rng(seed)
+    E, L, _ = _projection_data(random_phase(rng, k))
+    ours, reference = _Support(E, L, TOL.force_bound), _Support(E, L, TOL.force_bound)
+    for angle in rng.uniform(0.0, 2.0 * np.pi, 8):
+        theta = np.array([np.cos(angle), np.sin(angle)])
+        want = reference._highs(theta)
+        got = ours._fallback(theta)
+        if want is None:
+            assert got is None
+            continue
+        assert got is not None
+        assert abs(float(theta @ got) - float(theta @ want)) <= 1e-8
+        assert ours.last_bound_active == reference.last_bound_active
