@@ -1,7 +1,8 @@
 """The one whole-body motion builder: a :class:`MotionSpec` in, keyframes and a report out.
 
 The COM curve and the phases come from the caller (a plan, a Twister step, a jump); the
-builder runs the QP tracker (``tracker``) at ``SUBSTEPS`` control steps per keyframe, keeps
+builder runs the QP tracker (``tracker``) at ``SUBSTEPS`` control steps per keyframe
+(``FAST_SUBSTEPS`` in flights, pushes and landings: ``_Targets.substeps``), keeps
 the keyframes on an even grid at ``spec.rate``, and checks every keyframe with the one
 checker (``checker``). It never raises on a motion it cannot make clean: the report says
 which keyframes collide or slip and whether its termination (the plan's work budget, or
@@ -173,6 +174,26 @@ class _Targets:
         self._coms: dict[float, FloatArray] = {}
         # per phase, its stance as (limb, placement (4, 4)) pairs, made once
         self._stances: dict[int, tuple[tuple[str, FloatArray], ...]] = {}
+        self._substeps: dict[int, int] = {}
+
+    def substeps(self, k: int) -> int:
+        """Control steps per keyframe period in phase k: ``FAST_SUBSTEPS`` in a flight and in
+        a fast-COM phase whose COM curve goes faster than ``FAST_COM_SPEED`` somewhere
+        (a push, a landing), ``SUBSTEPS`` elsewhere (a jump's crouch and stand-up shifts
+        too: their COM moves at walking pace)."""
+        known = self._substeps.get(k)
+        if known is not None:
+            return known
+        phase = self.spec.phases[k]
+        fast = phase.flight is not None
+        if not fast and phase.fast_com and phase.t1 > phase.t0:
+            times = np.linspace(phase.t0, phase.t1, tuning.FAST_COM_SAMPLES)
+            points = np.array([self.com(float(t)) for t in times])
+            speeds = np.linalg.norm(np.diff(points, axis=0), axis=1) / np.diff(times)
+            fast = bool(speeds.max() > tuning.FAST_COM_SPEED)
+        count = tuning.FAST_SUBSTEPS if fast else tuning.SUBSTEPS
+        self._substeps[k] = count
+        return count
 
     def phase_index(self, t: float) -> int:
         """The phase running at ``t`` (the later one at a boundary)."""
@@ -389,9 +410,7 @@ def _track_segment(
             if until():
                 out.cut_short = True
                 break
-            running = spec.phases[targets.phase_index(t)]
-            fast = running.fast_com or running.flight is not None
-            substeps = tuning.FAST_SUBSTEPS if fast else tuning.SUBSTEPS
+            substeps = targets.substeps(targets.phase_index(t))
             dt = (t - previous) / substeps
             share = tuning.SUBSTEPS / substeps
             for s in range(1, substeps + 1):

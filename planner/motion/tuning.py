@@ -16,6 +16,14 @@ FAST_SUBSTEPS = 6
 flights: 180 Hz at 30 keyframes per second): a step's joint motion is small enough that the
 linearised contact constraints hold the stance within a millimetre."""
 
+FAST_COM_SPEED = 1.0
+"""m/s: a fast-COM phase (``MotionPhase.fast_com``) runs ``FAST_SUBSTEPS`` only where its COM
+curve goes faster than this (a push, a landing); a jump's crouch and stand-up shifts (about
+0.5 m/s at most) run ``SUBSTEPS``, as a walk does."""
+
+FAST_COM_SAMPLES = 16
+"""Points of a fast-COM phase's curve whose differences give its speed for ``FAST_COM_SPEED``."""
+
 MAX_JOINT_SPEED = 10.0
 """rad/s, cap on every joint's speed on top of the URDF's own velocity limit."""
 
