@@ -12,6 +12,7 @@ from fastapi import FastAPI
 from starlette.middleware.cors import CORSMiddleware
 from starlette.middleware.gzip import GZipMiddleware
 
+from planner.ballistic.planner import RoadmapStore
 from service import __version__, openapi
 from service.errors import install_error_handlers
 from service.files import remove_leftovers
@@ -57,6 +58,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.state.registry = registry
         app_metrics.watch_scenes(registry.uploaded_bytes, settings.scenes_quota_bytes)
         settings.roadmaps_path.mkdir(parents=True, exist_ok=True)
+        roadmaps = RoadmapStore(settings.roadmaps_path)
+        app_metrics.watch_roadmaps(roadmaps.used_bytes, settings.roadmaps_quota_bytes)
         lanes = Lanes(settings, app_metrics)
         app.state.lanes = lanes
         job_store = SqliteJobStore(settings.jobs_db_path)

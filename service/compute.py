@@ -36,6 +36,7 @@ from service.errors import ApiError, not_found
 from service.jobs import SqliteJobStore
 from service.registry import CharacterEntry, Registry
 from service.results import Kind, ResultStore, stored_result
+from service.roadmap_storage import RoadmapQuotaExceeded, admission, quota_exceeded
 from service.workers import worker_registry, worker_settings
 from trajectory import TransitionCost
 
@@ -312,16 +313,21 @@ def build_roadmap_job(request_json: str, job_id: str, jobs_db: str) -> dict[str,
 
     entry = character_entry(request.character)
     scene = scene_by_id(request.scene)
-    roadmaps = RoadmapStore(worker_settings().roadmaps_path)
-    rid = roadmaps.build(
-        scene,
-        entry.character,
-        entry.data,
-        jump_params(request),
-        request.nodes,
-        request.seed,
-        progress=progress,
-    )
+    settings = worker_settings()
+    roadmaps = RoadmapStore(settings.roadmaps_path)
+    try:
+        rid = roadmaps.build(
+            scene,
+            entry.character,
+            entry.data,
+            jump_params(request),
+            request.nodes,
+            request.seed,
+            progress=progress,
+            admit=admission(settings.roadmaps_path, settings.roadmaps_quota_bytes),
+        )
+    except RoadmapQuotaExceeded as exc:  # others' builds filled the quota meanwhile
+        raise quota_exceeded(exc) from exc
     info = roadmaps.info(rid) or {}
     return {
         "kind": "roadmap",
@@ -367,8 +373,11 @@ def run_jumps(request_json: str, seed: int, deadline: float | None = None) -> di
         store = RoadmapStore(worker_settings().roadmaps_path)
         if not request.roadmap.isalnum() or not store.exists(request.roadmap):
             raise not_found("roadmap", request.roadmap, "roadmap")
-        roadmap = store.load(request.roadmap)
-        params = store.params(request.roadmap)
+        try:
+            roadmap = store.load(request.roadmap)
+            params = store.params(request.roadmap)
+        except FileNotFoundError as exc:  # deleted since it was found
+            raise not_found("roadmap", request.roadmap, "roadmap") from exc
     try:
         result = plan_jumps(
             scene,

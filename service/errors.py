@@ -16,6 +16,9 @@ from service.context import annotate
 log = logging.getLogger("gecko.errors")
 
 
+INSUFFICIENT_STORAGE = 507  # HTTP status of a refused store (a quota is full)
+
+
 class ApiError(Exception):
     """An error with an HTTP status, a stable code, a message and the offending field."""
 

@@ -208,23 +208,26 @@ class JobCounts(Collector):
         yield family
 
 
-class SceneStorage(Collector):
-    """Bytes the uploaded scenes take and their quota, read at each scrape."""
+class StoredBytes(Collector):
+    """Bytes a store on disk takes and its quota, read at each scrape:
+    ``gecko_<store>_stored_bytes`` and ``gecko_<store>_quota_bytes``."""
 
-    def __init__(self, used: Callable[[], int], quota: int) -> None:
+    def __init__(
+        self, store: str, what: str, setting: str, used: Callable[[], int], quota: int
+    ) -> None:
+        self._store, self._what, self._setting = store, what, setting
         self._used = used
         self._quota = quota
 
     def collect(self) -> Iterable[GaugeMetricFamily]:
         yield GaugeMetricFamily(
-            "gecko_scenes_stored_bytes",
-            "Bytes the uploaded scenes take on disk, cached BVHs included (shared by every "
-            "worker).",
+            f"gecko_{self._store}_stored_bytes",
+            f"Bytes {self._what} take on disk (shared by every worker).",
             value=float(self._used()),
         )
         yield GaugeMetricFamily(
-            "gecko_scenes_quota_bytes",
-            "Most bytes the uploaded scenes may take (GECKO_SCENES_QUOTA_BYTES).",
+            f"gecko_{self._store}_quota_bytes",
+            f"Most bytes {self._what} may take ({self._setting}).",
             value=float(self._quota),
         )
 
@@ -319,7 +322,16 @@ class Metrics:
 
     def watch_scenes(self, used: Callable[[], int], quota: int) -> None:
         """Report the uploaded scenes' bytes ``used()`` and their ``quota`` at each scrape."""
-        self.exposed.register(SceneStorage(used, quota))
+        what = "the uploaded scenes, cached BVHs included,"
+        self.exposed.register(StoredBytes("scenes", what, "GECKO_SCENES_QUOTA_BYTES", used, quota))
+
+    def watch_roadmaps(self, used: Callable[[], int], quota: int) -> None:
+        """Report the stored jump roadmaps' bytes ``used()`` and their ``quota`` at each
+        scrape."""
+        what = "the stored jump roadmaps"
+        self.exposed.register(
+            StoredBytes("roadmaps", what, "GECKO_ROADMAPS_QUOTA_BYTES", used, quota)
+        )
 
     def observe_request(self, method: str, route: str, status: int, seconds: float) -> None:
         """Count one answered request and its latency (s)."""

@@ -70,6 +70,14 @@ class Settings(BaseSettings):
         "details files in the scenes directory and their cached BVH (about 550 bytes a "
         "triangle) in the cache directory; an upload past it is refused with 507",
     )
+    roadmaps_quota_bytes: int = Field(
+        default=1024**3,
+        ge=1024 * 1024,
+        le=1024**4,
+        description="bytes the stored jump roadmaps may take on disk (about 800 bytes a "
+        "node); a build that would go past it is refused with 507 (before it starts, on "
+        "1200 bytes a node), and DELETE /v1/roadmaps/{id} removes a finished one",
+    )
     scenes_cached: int = Field(
         default=8,
         ge=1,

@@ -24,12 +24,10 @@ from planner.scene import Scene, SceneError, content_hash, load_mesh
 from planner.scene.counts import count_mesh
 from planner.scene.io import validate_arrays
 from service import convert
-from service.errors import ApiError
+from service.errors import INSUFFICIENT_STORAGE, ApiError
 from service.registry import QuotaExceeded
 from service.settings import Settings
 from service.workers import worker_registry, worker_settings
-
-INSUFFICIENT_STORAGE = 507
 
 
 def too_large(message: str) -> ApiError:

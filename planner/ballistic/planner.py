@@ -20,6 +20,7 @@ import os
 import tempfile
 import time
 from collections.abc import Callable
+from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -680,19 +681,55 @@ class RoadmapStore:
             removed += 1
         return removed
 
-    def save(self, roadmap_id: str, roadmap: Roadmap, meta: dict[str, Any]) -> None:
-        """Store a roadmap atomically (the .json first, then the .npz that marks it ready)."""
+    def delete(self, roadmap_id: str) -> bool:
+        """Remove a stored roadmap (the .npz first: it is no longer ready, then its info);
+        False when none was stored under ``roadmap_id``."""
+        path = self.path(roadmap_id)
+        if not path.is_file():
+            return False
+        path.unlink(missing_ok=True)
+        path.with_suffix(".json").unlink(missing_ok=True)
+        return True
+
+    def used_bytes(self) -> int:
+        """Bytes the stored roadmaps (their .npz and .json files) take in the directory."""
+        total = 0
+        for entry in self.directory.glob("*"):
+            if entry.suffix in (".npz", ".json"):
+                try:
+                    total += entry.stat().st_size
+                except OSError:
+                    continue  # removed meanwhile
+        return total
+
+    def save(
+        self,
+        roadmap_id: str,
+        roadmap: Roadmap,
+        meta: dict[str, Any],
+        admit: Callable[[int], AbstractContextManager[None]] | None = None,
+    ) -> None:
+        """Store a roadmap atomically: both files written under temporary names, then the
+        .json renamed into place and the .npz (which marks it ready). ``admit(bytes)``, when
+        given, is entered around the renames with the two files' size: it may refuse by
+        raising (nothing is then stored) or hold a lock meanwhile (a storage quota)."""
         self.directory.mkdir(parents=True, exist_ok=True)
-        _atomic_write(
-            self.directory, self.path(roadmap_id).with_suffix(".json"), json.dumps(meta).encode()
-        )
-        fd, tmp = tempfile.mkstemp(dir=self.directory, suffix=".npz.tmp")
-        os.close(fd)
+        path = self.path(roadmap_id)
+        written: list[Path] = []
         try:
-            roadmap.save(tmp)
-            os.replace(tmp, self.path(roadmap_id))
+            info = _temporary_file(self.directory, json.dumps(meta).encode(), ".json.tmp")
+            written.append(info)
+            fd, name = tempfile.mkstemp(dir=self.directory, suffix=".npz.tmp")
+            os.close(fd)
+            written.append(Path(name))
+            roadmap.save(name)
+            size = sum(p.stat().st_size for p in written)
+            with admit(size) if admit is not None else nullcontext():
+                os.replace(info, path.with_suffix(".json"))
+                os.replace(name, path)
         finally:
-            Path(tmp).unlink(missing_ok=True)
+            for leftover in written:
+                leftover.unlink(missing_ok=True)
 
     def build(
         self,
@@ -704,11 +741,12 @@ class RoadmapStore:
         seed: int,
         progress: Callable[[float], None] | None = None,
         until: Termination = never,
+        admit: Callable[[int], AbstractContextManager[None]] | None = None,
     ) -> str:
         """Build (unless already stored) and store the roadmap; returns its id.
 
         ``progress`` receives fractions in [0, 1]. A build cut short by ``until`` is stored
-        too, with ``complete`` False in its info.
+        too, with ``complete`` False in its info. ``admit`` : see :meth:`save`.
         """
         rid = self.roadmap_id(scene, character, data, params, n_nodes, seed)
         if self.exists(rid):
@@ -742,18 +780,20 @@ class RoadmapStore:
             "character": character.id,
             "seed": int(seed),
         }
-        self.save(rid, roadmap, meta)
+        self.save(rid, roadmap, meta, admit)
         return rid
 
 
-def _atomic_write(directory: Path, target: Path, payload: bytes) -> None:
-    fd, tmp = tempfile.mkstemp(dir=directory, suffix=".tmp")
+def _temporary_file(directory: Path, payload: bytes, suffix: str) -> Path:
+    """``payload`` written to a new temporary file in ``directory``; its path."""
+    fd, tmp = tempfile.mkstemp(dir=directory, suffix=suffix)
     try:
         with os.fdopen(fd, "wb") as handle:
             handle.write(payload)
-        os.replace(tmp, target)
-    finally:
+    except BaseException:
         Path(tmp).unlink(missing_ok=True)
+        raise
+    return Path(tmp)
 
 
 __all__ = [

@@ -16,6 +16,7 @@ from service.errors import not_found
 from service.interactive import BUSY_RESPONSES
 from service.job_runner import JobContext
 from service.jobs import Job
+from service.roadmap_storage import RoadmapQuotaExceeded, check_room, quota_exceeded
 from service.routes.jobs import (
     CANCEL_RESPONSES,
     STORE_BUSY,
@@ -93,18 +94,31 @@ def _roadmap_id(roadmap_id: str) -> str:
             },
         },
         503: BUSY_RESPONSES[503],
+        507: {
+            "model": ErrorBody,
+            "description": "the stored roadmaps' quota (GECKO_ROADMAPS_QUOTA_BYTES) has no "
+            "room for a roadmap of this size",
+        },
     },
 )
 async def create_roadmap(
     body: RoadmapRequest, request: Request, registry: RegistryDep, settings: SettingsDep
 ) -> JSONResponse:
     """Start building a jump roadmap (or find the finished or running one); a job in the
-    background lane whose id is the roadmap's. Poll it; DELETE it to cancel the build."""
+    background lane whose id is the roadmap's. Poll it; DELETE it to cancel the build, or
+    to remove the roadmap once built. A build that would not fit in the roadmaps' quota is
+    refused (507) before it starts."""
     rid = await to_thread.run_sync(compute.roadmap_id, body, registry)
     store = RoadmapStore(settings.roadmaps_path)
     done = await to_thread.run_sync(_done, store, rid)
     if done is not None:
         return JSONResponse(done.model_dump(mode="json"), status_code=200)
+    try:
+        await to_thread.run_sync(
+            check_room, settings.roadmaps_path, body.nodes, settings.roadmaps_quota_bytes
+        )
+    except RoadmapQuotaExceeded as exc:
+        raise quota_exceeded(exc) from exc
     runner = runner_of(request)
     jobs_db = str(settings.jobs_db_path)
 
@@ -140,11 +154,27 @@ async def get_roadmap(roadmap_id: str, request: Request, settings: SettingsDep) 
     return _from_job(job)
 
 
-@router.delete("/roadmaps/{roadmap_id}", responses=CANCEL_RESPONSES)
-async def cancel_roadmap(roadmap_id: str, request: Request) -> RoadmapStatus:
-    """Cancel a queued or running build (its process is freed at once); answers its status,
-    now ``cancelled``. A finished roadmap is a 409."""
-    return _from_job(await cancel_job(request, _roadmap_id(roadmap_id), "roadmap_id"))
+@router.delete(
+    "/roadmaps/{roadmap_id}",
+    responses={
+        **CANCEL_RESPONSES,
+        200: {"model": RoadmapStatus, "description": "the build was cancelled"},
+        204: {"description": "the finished roadmap was removed (its bytes freed)"},
+    },
+)
+async def delete_roadmap(roadmap_id: str, request: Request, settings: SettingsDep) -> Response:
+    """Cancel a queued or running build (its process is freed at once) and answer its
+    status, now ``cancelled``; or remove a finished roadmap (204; its id then answers
+    404, as does a second DELETE). A build that ended otherwise (failed, cancelled,
+    interrupted) is a 409."""
+    rid = _roadmap_id(roadmap_id)
+    store = RoadmapStore(settings.roadmaps_path)
+    if await to_thread.run_sync(store.delete, rid):
+        return Response(status_code=204)
+    if (await find_job(request, rid, "roadmap_id")).state == "done":  # removed already
+        raise not_found("roadmap", rid, "roadmap_id")
+    job = _from_job(await cancel_job(request, rid, "roadmap_id"))
+    return JSONResponse(job.model_dump(mode="json"))
 
 
 @router.post(

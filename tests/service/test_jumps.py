@@ -3,16 +3,25 @@
 from __future__ import annotations
 
 import asyncio
+from pathlib import Path
 from typing import Any
 
 import httpx
 import numpy as np
 import pytest
 from asgi_lifespan import LifespanManager
+from prometheus_client.parser import text_string_to_metric_families
 
+from planner.ballistic.planner import JumpParams, RoadmapStore
+from planner.ballistic.roadmap import Roadmap
+from planner.character import get_character
+from planner.offline import load_offline_data
+from planner.scene import load_builtin_scene
 from service.app import create_app
+from service.roadmap_storage import ROADMAP_BYTES_PER_NODE, RoadmapQuotaExceeded, admission
 from service.settings import Settings
 from tests.motion_audit import audit_from_json
+from tests.paths import gecko_cache_dir
 
 pytestmark = pytest.mark.anyio
 
@@ -69,7 +78,7 @@ async def test_roadmap_build_persist_and_jump(
         "goal": GOAL,
         "roadmap": rid,
         "seed": 1,
-        "time_budget_s": 30,
+        "time_budget_s": 60,  # the most: a busy machine answers the same, only later
     }
     first = await client.post("/v1/jumps", json=request, timeout=120)
     assert first.status_code == 200, first.text
@@ -132,7 +141,7 @@ async def test_jumps_without_roadmap(client: httpx.AsyncClient) -> None:
         "goal": GOAL,
         "nodes": 150,
         "seed": 2,
-        "time_budget_s": 30,
+        "time_budget_s": 60,  # the most: a busy machine answers the same, only later
     }
     response = await client.post("/v1/jumps", json=request, timeout=120)
     assert response.status_code == 200, response.text
@@ -186,3 +195,86 @@ async def test_unknown_roadmap_is_404(client: httpx.AsyncClient) -> None:
     response = await client.get("/v1/roadmaps/deadbeef")
     assert response.status_code == 404
     assert response.json()["error"]["field"] == "roadmap_id"
+
+
+async def test_roadmaps_quota_refuses_a_build_before_it_starts_and_delete_frees_it(
+    settings: Settings,
+) -> None:
+    """A build whose estimated size would take the stored roadmaps past
+    GECKO_ROADMAPS_QUOTA_BYTES is refused (507, naming the setting and the field) before any
+    work; a finished roadmap's DELETE removes its files (204), its id then answers 404, and
+    the freed room takes the refused build."""
+    small = ROADMAP["nodes"] * ROADMAP_BYTES_PER_NODE
+    room = settings.model_copy(update={"roadmaps_quota_bytes": max(1024 * 1024, 2 * small)})
+    app = create_app(room)
+    async with (
+        LifespanManager(app),
+        httpx.AsyncClient(transport=httpx.ASGITransport(app=app), base_url="http://g") as client,
+    ):
+        too_big = {**ROADMAP, "nodes": room.roadmaps_quota_bytes // ROADMAP_BYTES_PER_NODE + 1}
+        refused = await client.post("/v1/roadmaps", json=too_big)
+        assert refused.status_code == 507, refused.text
+        error = refused.json()["error"]
+        assert error["code"] == "quota_exceeded" and error["field"] == "nodes"
+        assert "GECKO_ROADMAPS_QUOTA_BYTES" in error["message"]
+        assert not list(room.roadmaps_path.glob("*.npz"))  # nothing was built
+
+        built = await client.post("/v1/roadmaps", json=ROADMAP)
+        rid = built.json()["id"]
+        await _wait_done(client, rid)
+        stored = RoadmapStore(room.roadmaps_path).used_bytes()
+        assert 0 < stored <= ROADMAP["nodes"] * ROADMAP_BYTES_PER_NODE  # the estimate bounds it
+        scraped = {
+            sample.name: sample.value
+            for family in text_string_to_metric_families((await client.get("/metrics")).text)
+            for sample in family.samples
+        }
+        assert scraped["gecko_roadmaps_stored_bytes"] == stored
+        assert scraped["gecko_roadmaps_quota_bytes"] == room.roadmaps_quota_bytes
+        fits = {**too_big, "nodes": (room.roadmaps_quota_bytes - stored) // ROADMAP_BYTES_PER_NODE}
+        assert (
+            await client.post("/v1/roadmaps", json={**fits, "nodes": fits["nodes"] + 1})
+        ).status_code == 507
+
+        deleted = await client.delete(f"/v1/roadmaps/{rid}")
+        assert deleted.status_code == 204, deleted.text
+        assert RoadmapStore(room.roadmaps_path).used_bytes() == 0
+        gone = await client.get(f"/v1/roadmaps/{rid}")
+        assert gone.status_code == 404 and gone.json()["error"]["field"] == "roadmap_id"
+        jump = await client.post(
+            "/v1/jumps",
+            json={
+                "character": "quadruped",
+                "scene": "gaps",
+                "start": START,
+                "goal": GOAL,
+                "roadmap": rid,
+            },
+        )
+        assert jump.status_code == 404 and jump.json()["error"]["field"] == "roadmap"
+        assert (await client.delete(f"/v1/roadmaps/{rid}")).status_code == 404  # gone
+        again = await client.post("/v1/roadmaps", json={**fits, "nodes": fits["nodes"] + 1})
+        assert again.status_code == 202, again.text  # the freed room
+        assert (await client.delete(f"/v1/roadmaps/{again.json()['id']}")).json()[
+            "status"
+        ] == "cancelled"
+
+
+def test_a_roadmap_past_the_quota_when_stored_leaves_nothing(tmp_path: Path) -> None:
+    """The quota is checked again on the real size when the files are stored (builds
+    admitted together): a refused roadmap leaves no file, and one that fits is stored."""
+    character = get_character("quadruped")
+    data = load_offline_data(character, gecko_cache_dir())
+    scene = load_builtin_scene("gaps", gecko_cache_dir())
+    source = RoadmapStore(tmp_path / "source")
+    roadmap = source.load(source.build(scene, character, data, JumpParams(), 8, 0))
+    store = RoadmapStore(tmp_path / "store")
+    with pytest.raises(RoadmapQuotaExceeded):
+        store.save("abc", roadmap, {"nodes": 3}, admission(store.directory, 100))
+    assert sorted(p.name for p in store.directory.iterdir() if p.name != ".lock") == []
+    store.save("abc", roadmap, {"nodes": 3}, admission(store.directory, 1024 * 1024))
+    assert store.exists("abc") and isinstance(store.load("abc"), Roadmap)
+    assert sorted(p.name for p in store.directory.iterdir() if p.name != ".lock") == [
+        "abc.json",
+        "abc.npz",
+    ]
