@@ -13,9 +13,11 @@ The root path is a guide, not a constraint. The walker repeats a gait cycle:
    quadrupeds, a wave for hexapods) that is off its foothold is released (COM shifted over
    the other contacts, 2PAC) and put down again at its foothold or part of the way there
    (candidates from the limb database, projected by IK, checked for collision, balance with
-   the margin and 2PAC feasibility). The release is only emitted with the new contact, so a
-   failed step leaves the sequence unchanged and another limb is tried. A stuck walker
-   looks further ahead for footholds (stepping stones), then repositions a limb.
+   the margin and 2PAC feasibility); a leg is not put where no other leg could be released
+   afterwards (the rear foot of a biped left unable to follow). The release is only emitted
+   with the new contact, so a failed step leaves the sequence unchanged and another limb is
+   tried. A stuck walker looks further ahead for footholds (stepping stones), then
+   repositions a limb.
 
 Optional limbs (``limbs``, say a hand for a handrail) take a foothold only near their
 nominal position and are let go when none is left.
@@ -463,6 +465,14 @@ def contact_sequence(
         stats["breaks"] = int(stats["breaks"]) + 1
         return True
 
+    def _followable(state: ContactState, moved: str) -> bool:
+        # whether a leg other than ``moved`` (just put down) can still be released from
+        # ``state``: a biped whose front foot stepped where the rear one cannot follow (the
+        # COM cannot be shifted off it) has only the front limbs left to move, and walks
+        # them back and forth in ever wider straddles the whole body cannot play
+        others = [c.limb for c in state.contacts if c.limb != moved and c.limb in legs]
+        return not others or any(break_contact(ctx, state, x).ok for x in others)
+
     def step(limb: str, target: FloatArray, reposition: bool = False) -> bool:
         nonlocal current
         old = current.contact(limb)
@@ -495,6 +505,8 @@ def contact_sequence(
                 if float(np.linalg.norm(placed.position - old.position)) < 0.02:
                     continue  # put back where it was: nothing gained
             elif not _steps_on(placed.position, old, target, before, guide.tangent(s), reach, p):
+                continue
+            if not reposition and limb in legs and not _followable(made.state, limb):
                 continue
             if base is not current:
                 states.append(base)

@@ -291,9 +291,6 @@ def test_a_neighbouring_seed_and_a_nudged_start_solve_too(planned) -> None:  # t
 # (issue 12 item 6 stays open for them): the test records how they fail instead.
 KNIFE_EDGE = {
     "climbing_wall_hexapod": "the walk stalls part-way up the wall (no progress at 1.23 m)",
-    "stairs_handrail_humanoid": "a swing foot into a step the builder cannot avoid; the "
-    "re-planned contact changes run out of work before one comes clean (it solves when "
-    "the contact plan differs by a few states)",
 }
 
 
