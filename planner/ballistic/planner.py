@@ -517,14 +517,27 @@ def _synthesise(
                 takeoff.cone_mu,
                 landing.cone_axis,
                 landing.cone_mu,
+                params.roadmap.vimpmax,
             )
         )
     motion, timing = build_jumps(
         char, model.scene.collision.bvh, states, legs, rate=params.rate, until=until
     )
+    # the landing as the motion makes it: its contacts may be made later on the parabola
+    # than the roadmap's node (the legs drawn up in flight, ``planner.motion.jump``)
     jumps = tuple(
-        _info(takeoff, landing, apex, duration, when)
-        for (takeoff, landing, apex, duration), when in zip(ends, timing, strict=True)
+        _info(
+            takeoff,
+            replace(
+                landing,
+                position=_ro(when.touchdown_com),
+                velocity=_ro(when.touchdown_velocity),
+            ),
+            apex,
+            when.touchdown - when.takeoff,
+            when,
+        )
+        for (takeoff, landing, apex, _), when in zip(ends, timing, strict=True)
     )
     return jumps, motion
 

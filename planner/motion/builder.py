@@ -195,6 +195,16 @@ class _Targets:
         self._substeps[k] = count
         return count
 
+    def progress(self, phase: MotionPhase, com: FloatArray) -> float:
+        """How far (0 to 1) ``com`` (3,) lies along the chord from the COM curve's point at
+        ``phase.t0`` to its point at ``phase.t1`` (projected on it; 1 for a still COM)."""
+        a, b = self.com(phase.t0), self.com(phase.t1)
+        chord = b - a
+        length = float(chord @ chord)
+        if length < 1e-12:
+            return 1.0
+        return min(1.0, max(0.0, float((com - a) @ chord) / length))
+
     def phase_index(self, t: float) -> int:
         """The phase running at ``t`` (the later one at a boundary)."""
         k = bisect.bisect_right(self._break_list, t)  # np.searchsorted's, in plain floats
@@ -314,6 +324,16 @@ class _Targets:
             )
         # a fast COM: its target unsaturated, the trunk height aimed with it
         posture = np.array(phase.posture, dtype=np.float64)
+        if phase.posture_from is not None:
+            posture = np.asarray(
+                pin.interpolate(
+                    self.character.model,
+                    np.asarray(phase.posture_from, dtype=np.float64),
+                    posture,
+                    self.progress(phase, com),
+                ),
+                dtype=np.float64,
+            )
         posture[:3] += com - self.com(phase.t0)
         if phase.turn_from is not None:  # a turning flight: the trunk turns with its limbs
             posture[3:7] = pin.Quaternion(
@@ -331,6 +351,7 @@ class _Targets:
             com_reach=math.inf,
             rigid_stance=phase.rigid_stance,
             root_bounded=False,
+            posture_led=phase.posture_from is not None,
         )
 
 

@@ -7,18 +7,24 @@ rest to the takeoff velocity ``v0`` (a quadratic Bezier); the flight, in which t
 follows the parabola ``c0 + v0 t + g t^2 / 2`` exactly (a quadratic Bezier is that
 parabola) and every limb that lands or took off is carried from its takeoff pose to its
 landing pose; the landing, in which the COM decelerates at a constant rate from the impact
-velocity to rest. A last shift stands the body up on the last landing's contacts. The COM
-velocity is continuous everywhere; its acceleration is ``JUMP_ACCELERATION``, more when the
-legs' reach demands a shorter push: the crouch the push starts from and the point the
-landing stops at are never further from the takeoff or touchdown COM than the stance
-reaches (a short-legged body pushes and lands harder, it does not crouch below its feet).
-The contact force it needs, m (c'' - g), is checked against the node's centroidal cone (the
+velocity to rest. The landing contacts are made where the legs, their joints at their speed
+limits, move the COM as fast as it falls, or as nearly as the reach allows: on the parabola
+at or below the landing node, the legs drawn up in flight (``_touchdown``); a stance with
+nearly straight knees moves it at a fraction of a fast landing's speed. A
+last shift stands the body up on the last landing's contacts. The COM velocity is continuous
+everywhere; its acceleration is ``JUMP_ACCELERATION``, more when the legs' reach demands a
+shorter push: the crouch the push starts from and the point the landing stops at are never
+further from the takeoff COM or the landing node's COM than the stance reaches (a
+short-legged body pushes and lands harder, it does not crouch below its feet). The contact
+force it needs, m (c'' - g), is checked against the node's centroidal cone (the
 push or landing is lengthened within reach or shortened until it passes, or the timing says
 it does not; likewise when even the shortest push travels beyond reach). The shift before
 each push is lengthened so that the push and the landing each hold a keyframe, and the
 motion lasts a whole number of keyframe periods. Every stance phase of a jump holds its
 contacts rigidly (equality constraints of the tracker's QP, finer control steps): the tracked
-COM lags its curve where the joint speed limits cannot follow it, the feet never slide.
+COM lags its curve where the joint speed limits cannot follow it, the feet never slide. The
+push and the landing lead the joints along the whole-body IK's crouch (``_crouched``: the
+stance with its COM where the curve puts it) as the COM goes (``MotionPhase.posture_from``).
 """
 
 from __future__ import annotations
@@ -29,15 +35,28 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import pinocchio as pin
 from numpy.typing import NDArray
+from scipy.optimize import linprog
 
 import trajectory
 from planner.character import Character
-from planner.kinematics import com_position, frame_placement
+from planner.kinematics import (
+    ComTask,
+    FramePlacementTask,
+    FramePositionTask,
+    PostureTask,
+    Priority,
+    Task,
+    com_position,
+    frame_placement,
+    solve_ik,
+)
 from planner.motion import tuning
 from planner.motion.builder import BuiltMotion, build_motion
 from planner.motion.sequence import rest_to_rest
 from planner.motion.spec import FlightLimb, MotionPhase, MotionSpec, natural_posture
+from planner.motion.tracker import speed_limits
 from planner.termination import Termination, never
 
 if TYPE_CHECKING:  # annotations only: planner.contact imports planner.motion
@@ -53,7 +72,9 @@ class JumpLeg:
     com0 : (3,) m, the COM when the contacts break (the takeoff stance's COM). v0 : (3,)
     m/s takeoff velocity. duration : s of flight. g : gravity magnitude (m/s^2).
     takeoff_axis / landing_axis : (3,) unit axes of the two nodes' centroidal cones (zeros:
-    unchecked), takeoff_mu / landing_mu their friction coefficients.
+    unchecked), takeoff_mu / landing_mu their friction coefficients. vimp_max : m/s, the
+    fastest the COM may move at touchdown (the roadmap's bound): a touchdown delayed on the
+    parabola (``_touchdown``) never lands faster.
     """
 
     com0: FloatArray
@@ -64,6 +85,7 @@ class JumpLeg:
     takeoff_mu: float
     landing_axis: FloatArray
     landing_mu: float
+    vimp_max: float = math.inf
 
     @property
     def gravity(self) -> FloatArray:
@@ -91,7 +113,9 @@ class JumpTiming:
     push_acceleration / landing_acceleration : (3,) m/s^2, the COM's constant acceleration
     in each; push_in_cone / landing_in_cone : the contact force m (c'' - g) lies in the node's
     centroidal cone; push_in_reach / landing_in_reach : the COM's travel in each stays within
-    the stance's reach (``_reach``)."""
+    the stance's reach (``_reach``). touchdown_com / touchdown_velocity : (3,) m, m/s, the
+    COM when the landing contacts are made, on the jump's parabola (``_touchdown``: at or
+    after the leg's ``com1``)."""
 
     crouch: float
     push: float
@@ -105,6 +129,8 @@ class JumpTiming:
     landing_in_cone: bool
     push_in_reach: bool
     landing_in_reach: bool
+    touchdown_com: FloatArray
+    touchdown_velocity: FloatArray
 
 
 def in_cone(force: FloatArray, axis: FloatArray, mu: float) -> bool:
@@ -171,6 +197,121 @@ def _reach(state: ContactState, com: FloatArray) -> float:
         return 0.0
     floor = float(np.mean([c.points[:, 2].mean() for c in state.contacts]))
     return tuning.JUMP_CROUCH_SHARE * max(float(com[2]) - floor, 0.0)
+
+
+def _crouched(
+    character: Character, state: ContactState, point: FloatArray
+) -> tuple[FloatArray, bool]:
+    """The configuration (nq,) of ``state`` with its COM moved to ``point`` (3,) m, its
+    contacts held and its joints within their limits (whole-body IK from ``state.q``, pulled
+    toward it), and whether the COM got there (within 1 mm); when not, the nearest the IK
+    found. A push's crouch and a landing's end are aimed at it: pulled toward the standing
+    posture, the tracker met a joint limit (an ankle's dorsiflexion, the torso's pitch) and
+    held the humanoid's COM 40 mm off a point the legs reach with the torso bent."""
+    model = character.model
+    if not state.contacts:
+        return np.array(state.q, dtype=np.float64), False
+    holds: list[Task] = []
+    for c in state.contacts:
+        limb = character.limb(c.limb)
+        if limb.contact == "point":
+            target = c.placement[:3, 3]
+            holds.append(FramePositionTask(limb.frame_id, target, np.zeros(3), Priority.CONTACT))
+        else:
+            holds.append(FramePlacementTask(limb.frame_id, c.placement, Priority.CONTACT))
+    weights = np.ones(model.nv)
+    weights[: _root_nv(model)] = 0.0
+    result = solve_ik(
+        model,
+        state.q,
+        [*holds, ComTask(point), PostureTask(state.q, weights, gain=0.3)],
+        max_iterations=tuning.JUMP_CROUCH_IK_ITERATIONS,
+        tolerance=1e-3,
+    )
+    return np.array(result.q, dtype=np.float64), bool(result.success)
+
+
+def _touchdown(
+    character: Character, state: ContactState, com: FloatArray, leg: JumpLeg, reach: float
+) -> tuple[float, FloatArray]:
+    """How much later (s) than the leg's ``duration`` the landing contacts are made, and the
+    configuration (nq,) of ``state`` (whose COM is ``com`` (3,)) they are made in.
+
+    The landing starts at the touchdown velocity, which the legs must give the COM at once
+    with their joints within ``speed_limits``: a stance with nearly straight knees moves its
+    COM down at 1.5 to 2 m/s at 10 rad/s (the humanoid, knees at 0.3 to 0.5 rad), while a
+    jump lands at up to 4.6 m/s, so the tracked COM lagged its curve by 50 to 90 mm. The
+    contacts are made instead further down the parabola, the legs drawn up in flight (the
+    stance crouched by ``_crouched`` as the COM is there): the first of the times
+    k ``JUMP_TOUCHDOWN_STEP_S`` whose crouch moves its COM along the touchdown velocity at
+    least that fast (``com_speed``), its travel below ``com1`` within
+    ``JUMP_TOUCHDOWN_SHARE`` of the landing's ``reach`` (m) and the touchdown speed within
+    ``leg.vimp_max``; else the one whose crouch comes nearest (0: the stance itself)."""
+    best = (0.0, np.asarray(state.q, dtype=np.float64))
+    if not state.contacts:
+        return best
+    limits = speed_limits(character.model, root_bounded=False)
+    best_ratio = -math.inf
+    g = leg.gravity
+    for k in range(tuning.JUMP_TOUCHDOWN_STEPS + 1):
+        late = k * tuning.JUMP_TOUCHDOWN_STEP_S
+        t = leg.duration + late
+        velocity = leg.v0 + g * t
+        point = leg.com0 + leg.v0 * t + 0.5 * g * t * t
+        travel = float(np.linalg.norm(point - leg.com1))
+        speed = float(np.linalg.norm(velocity))
+        if k and (travel > tuning.JUMP_TOUCHDOWN_SHARE * reach or speed > leg.vimp_max):
+            break
+        q = np.asarray(state.q, dtype=np.float64)
+        if k:
+            q, _ = _crouched(character, state, com + point - leg.com1)
+        ratio = com_speed(character, q, state, velocity, limits) / max(speed, 1e-9)
+        if ratio > best_ratio:
+            best, best_ratio = (late, q), ratio
+        if ratio >= 1.0:
+            return late, q
+    return best
+
+
+def com_speed(
+    character: Character,
+    q: FloatArray,
+    state: ContactState,
+    direction: FloatArray,
+    limits: FloatArray,
+) -> float:
+    """m/s, the fastest the COM of ``q`` (nq,) moves along ``direction`` (3,) with the
+    contacts of ``state`` held (their Jacobians' rows null: position for a point, placement
+    for a patch) and each joint within ``limits`` (nv,) rad/s (the root free): a linear
+    program over the joint velocities."""
+    model = character.model
+    data = model.createData()
+    unit = np.asarray(direction, dtype=np.float64) / max(float(np.linalg.norm(direction)), 1e-12)
+    jcom = pin.jacobianCenterOfMass(model, data, np.asarray(q, dtype=np.float64))
+    pin.updateFramePlacements(model, data)
+    rows = []
+    for c in state.contacts:
+        limb = character.limb(c.limb)
+        jac = pin.getFrameJacobian(model, data, limb.frame_id, pin.LOCAL)
+        rows.append(jac[:3] if limb.contact == "point" else jac)
+    nv = model.nv
+    # variables (qdot (nv,), s): max s with J_com qdot = s unit, J_c qdot = 0
+    a_eq = np.zeros((3 + sum(len(r) for r in rows), nv + 1))
+    a_eq[:3, :nv] = jcom
+    a_eq[:3, nv] = -unit
+    a_eq[3:, :nv] = np.vstack(rows)
+    bounds = [(-x, x) if math.isfinite(x) else (None, None) for x in limits]
+    cost = np.zeros(nv + 1)
+    cost[nv] = -1.0
+    result = linprog(
+        cost, A_eq=a_eq, b_eq=np.zeros(len(a_eq)), bounds=[*bounds, (0.0, None)], method="highs"
+    )
+    return float(result.x[nv]) if result.success else 0.0
+
+
+def _root_nv(model: Any) -> int:
+    """Tangent dofs of a free-flyer root (6), 0 for a fixed base."""
+    return 6 if model.njoints > 1 and model.joints[1].nq == 7 else 0
 
 
 def _quadratic(p0: FloatArray, p1: FloatArray, p2: FloatArray, t0: float, t1: float) -> Any:
@@ -291,25 +432,35 @@ def jump_spec(
         push = stance_duration(
             leg.v0, g, leg.takeoff_axis, leg.takeoff_mu, _reach(before, coms[i]), landing=False
         )
+        reach = _reach(after, coms[i + 1])
+        late, td_q = _touchdown(character, after, coms[i + 1], leg, reach)
+        big_t = leg.duration + late
+        vimp = leg.v0 + g * big_t
+        com1 = leg.com0 + leg.v0 * big_t + 0.5 * g * big_t * big_t
+        land_reach = reach - float(np.linalg.norm(com1 - leg.com1))
         land = stance_duration(
-            leg.vimp,
+            vimp,
             g,
             leg.landing_axis,
             leg.landing_mu,
-            _reach(after, coms[i + 1]),
+            max(land_reach, 0.0),
             landing=True,
         )
         push_s, land_s = push.duration, land.duration
         crouch = leg.com0 - 0.5 * push_s * leg.v0
-        com1 = leg.com1
-        rest = com1 + 0.5 * land_s * leg.vimp
+        rest = com1 + 0.5 * land_s * vimp
+        # the postures the crouch and the landing's end aim at: the stances with their COM
+        # moved as the curve moves it (from each stance's own COM, which the curve's ends
+        # are within millimetres of)
+        crouch_q, _ = _crouched(character, before, coms[i] + crouch - leg.com0)
+        landed_q, _ = _crouched(character, after, coms[i + 1] + rest - leg.com1)
         # shift into the crouch, on the takeoff contacts, lengthened so that the push and
         # the landing each hold a keyframe (they may be shorter than a keyframe period)
         natural = _shift(here, crouch, t, tuning.JUMP_MIN_SHIFT_S).t1
-        start = _keyed_start(natural, ((0.0, push_s), (push_s + leg.duration, land_s)), 1.0 / rate)
+        start = _keyed_start(natural, ((0.0, push_s), (push_s + big_t, land_s)), 1.0 / rate)
         shift = _shift(here, crouch, t, max(start - t, tuning.JUMP_MIN_SHIFT_S))
         segments.append(shift)
-        posture = _aimed(np.asarray(before.q), before.q, here, coms[i])
+        posture = _aimed(crouch_q, crouch_q, here, com_position(model, crouch_q))
         phases.append(
             MotionPhase(
                 t,
@@ -334,11 +485,11 @@ def jump_spec(
                 level_trunk=False,
                 fast_com=True,
                 rigid_stance=True,
+                posture_from=_aimed(crouch_q, crouch_q, crouch, com_position(model, crouch_q)),
             )
         )
         t_push, t = t, t + push_s
         # the flight: the parabola itself
-        big_t = leg.duration
         segments.append(_quadratic(leg.com0, leg.com0 + 0.5 * big_t * leg.v0, com1, t, t + big_t))
         flight_posture = natural_posture(character, np.asarray(after.q), after.limbs)
         flight_posture = _aimed(flight_posture, before.q, leg.com0, coms[i])
@@ -357,7 +508,7 @@ def jump_spec(
         apex = t_takeoff + min(max(float(leg.v0[2]) / leg.g, 0.0), big_t)
         # the landing: from the impact velocity to rest at constant deceleration
         segments.append(_quadratic(com1, rest, rest, t, t + land_s))
-        posture = _aimed(np.asarray(after.q), after.q, com1, coms[i + 1])
+        posture = _aimed(landed_q, landed_q, com1, com_position(model, landed_q))
         phases.append(
             MotionPhase(
                 t,
@@ -367,6 +518,7 @@ def jump_spec(
                 level_trunk=False,
                 fast_com=True,
                 rigid_stance=True,
+                posture_from=_aimed(td_q, td_q, com1, com_position(model, td_q)),
             )
         )
         t_touchdown, t = t, t + land_s
@@ -379,11 +531,13 @@ def jump_spec(
                 t_touchdown,
                 t,
                 np.asarray(leg.v0 / push_s, dtype=np.float64),
-                np.asarray(-leg.vimp / land_s, dtype=np.float64),
+                np.asarray(-vimp / land_s, dtype=np.float64),
                 push.in_cone,
                 land.in_cone,
                 push.in_reach,
                 land.in_reach,
+                np.asarray(com1, dtype=np.float64),
+                np.asarray(vimp, dtype=np.float64),
             )
         )
         here = rest

@@ -74,6 +74,11 @@ class MotionPhase:
     and the carried limbs' offsets from the COM turn from it to ``posture``'s orientation
     as the flight goes on, so that legs turning with the body do not cross (None: the trunk
     is aimed at ``posture``'s orientation from the start).
+    posture_from : for a ``fast_com`` phase on the ground, (nq,) the configuration pulled
+    toward at its start (its root aimed, like ``posture``'s, at ``t0``): the target moves from
+    it to ``posture`` (``pin.interpolate``) as the COM goes from the curve's point at ``t0``
+    to its point at ``t1``, and the pull weighs ``JUMP_POSTURE_COST`` (a jump's push and
+    landing led along the whole-body IK's crouch; None: ``posture`` throughout).
     """
 
     t0: float
@@ -87,10 +92,13 @@ class MotionPhase:
     rigid_stance: bool = False
     quasi_static: bool = False
     turn_from: FloatArray | None = None
+    posture_from: FloatArray | None = None
 
     def __post_init__(self) -> None:
         if self.flight is not None and (self.stance or self.swing is not None):
             raise ValueError("a flight holds no stance and has no swing")
+        if self.posture_from is not None and (self.flight is not None or not self.fast_com):
+            raise ValueError("posture_from: only a fast_com phase on the ground")
         if self.turn_from is not None and self.flight is None:
             raise ValueError("turn_from: only a flight turns")
 

@@ -77,7 +77,10 @@ class StepTargets:
     exactly ``com`` before and after the QP (the QP then only shapes the body).
     com_reach : m, the COM target is pulled in to this distance from the COM
     (``COM_MAX_ERROR``; unbounded for a fast COM). rigid_stance : the stance contacts are
-    equality constraints of the QP, not costs.
+    equality constraints of the QP, not costs. posture_led : the posture is a moving
+    target the joints track dead-beat (``TASK_GAIN``, unsaturated) at ``JUMP_POSTURE_COST``
+    (a jump's push and landing, led along the whole-body IK's crouch), instead of a
+    gentle pull (``POSTURE_GAIN``, ``POSTURE_MAX_ERROR``) at ``POSTURE_COST``.
     """
 
     stance: tuple[tuple[str, FloatArray], ...]
@@ -91,6 +94,7 @@ class StepTargets:
     com_reach: float = tuning.COM_MAX_ERROR
     rigid_stance: bool = False
     root_bounded: bool = True
+    posture_led: bool = False
 
 
 def effector_geometries(character: Character) -> dict[str, frozenset[int]]:
@@ -471,14 +475,24 @@ class WholeBodyTracker:
         # the posture task's Jacobian is the identity on the joints: its terms are diagonal.
         # Each joint is pulled at most POSTURE_MAX_ERROR toward its posture per step: summed
         # over thirty joints, a far posture would otherwise outweigh the stance contacts
-        reach = tuning.POSTURE_MAX_ERROR * share
         joints = self._joints
         aim = q.copy()
-        aim[joints] = q[joints] + np.minimum(np.maximum(posture[joints] - q[joints], -reach), reach)
-        gain = 1.0 - (1.0 - tuning.POSTURE_GAIN) ** share
-        pull = pin.difference(model, aim, q)[self._root_nv :]
-        weight = tuning.POSTURE_COST * tuning.POSTURE_COST
         hessian += self._diagonal_terms
+        if targets.posture_led:
+            aim[joints] = posture[joints]
+            gain = tuning.TASK_GAIN
+            weight = tuning.JUMP_POSTURE_COST * tuning.JUMP_POSTURE_COST
+            # the constant diagonal holds POSTURE_COST's weight
+            extra = weight - tuning.POSTURE_COST * tuning.POSTURE_COST
+            np.einsum("ii->i", hessian)[self._root_nv :] += extra  # a view of the diagonal
+        else:
+            reach = tuning.POSTURE_MAX_ERROR * share
+            aim[joints] = q[joints] + np.minimum(
+                np.maximum(posture[joints] - q[joints], -reach), reach
+            )
+            gain = 1.0 - (1.0 - tuning.POSTURE_GAIN) ** share
+            weight = tuning.POSTURE_COST * tuning.POSTURE_COST
+        pull = pin.difference(model, aim, q)[self._root_nv :]
         linear[self._root_nv :] += weight * gain * pull
         self.scene.set_phase(frozenset(skipped), light)
         return StepQP(hessian, linear, held)

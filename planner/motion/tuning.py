@@ -282,6 +282,29 @@ JUMP_CROUCH_SHARE = 0.3
 """The COM travels at most this share of its standing height above the contacts during a
 push or a landing (the legs' reach): a fast jump then pushes or lands harder and shorter."""
 
+JUMP_CROUCH_IK_ITERATIONS = 60
+"""Iterations of the whole-body IK that crouches a jump's stance (its COM moved, the
+contacts held: ``planner.motion.jump._crouched``)."""
+
+JUMP_POSTURE_COST = 3.0
+"""Cost of the posture pull in a jump's push and landing, whose posture target moves
+along the whole-body IK's crouch with the COM (``MotionPhase.posture_from``): pulled only
+toward the standing stance (``POSTURE_COST``), the tracker that followed a fast landing COM
+with every joint at its speed limit bent the hips backward to their limit and held the
+humanoid's COM 40 mm off its curve after it."""
+
+JUMP_TOUCHDOWN_STEP_S = 0.005
+"""s: a landing's contacts are made this much later on the parabola at a time, the legs
+drawn up further in flight, until the crouched stance's joints at their speed limits move
+the COM as fast as it lands (``planner.motion.jump._touchdown``)."""
+
+JUMP_TOUCHDOWN_STEPS = 16
+"""Most such steps (80 ms later)."""
+
+JUMP_TOUCHDOWN_SHARE = 0.5
+"""The COM may fall at most this share of the landing's reach below the node's before the
+contacts are made: the rest is left to the landing."""
+
 JUMP_MIN_STANCE_S = 0.01
 """s: shortest takeoff push or landing (a 180 Hz control step and a half at 30 keyframes per
 second). A push the legs' reach would make shorter is reported as out of reach (the body

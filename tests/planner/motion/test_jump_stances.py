@@ -18,7 +18,15 @@ from planner.contact.state import ContactState
 from planner.kinematics import com_position
 from planner.motion import tuning
 from planner.motion.builder import keyframe_grid
-from planner.motion.jump import JumpLeg, _reach, in_cone, jump_spec, stance_duration
+from planner.motion.jump import (
+    JumpLeg,
+    _reach,
+    com_speed,
+    in_cone,
+    jump_spec,
+    stance_duration,
+)
+from planner.motion.tracker import speed_limits
 from tests.planner.contact.contact_helpers import character_and_data, scene
 
 G = np.array([0.0, 0.0, -9.81])
@@ -71,10 +79,13 @@ def test_the_cone_may_lengthen_a_push_only_within_reach() -> None:
     assert in_cone(velocity / stance.duration - G, axis, 0.5)
 
 
-def _hexapod_jump(rise: float, speed_scale: float) -> tuple[Character, list[ContactState], JumpLeg]:
-    """The hexapod standing on flat ground and jumping forward onto the same ground
-    translated by ``rise`` up (the landing contacts are the takeoff ones moved)."""
-    character, data = character_and_data("hexapod")
+def _hexapod_jump(
+    rise: float, speed_scale: float, name: str = "hexapod"
+) -> tuple[Character, list[ContactState], JumpLeg]:
+    """The hexapod (or character ``name``) standing on flat ground and jumping forward onto
+    the same ground translated by ``rise`` up (the landing contacts are the takeoff ones
+    moved)."""
+    character, data = character_and_data(name)
     ctx = make_context(scene("flat"), character, data)
     q0 = np.array(character.q_ref)
     names = [limb.name for limb in character.default_limbs]
@@ -119,11 +130,23 @@ def test_a_short_legged_jump_crouches_and_lands_within_reach() -> None:
     assert timing.push_in_reach and timing.landing_in_reach
     assert timing.push_in_cone and timing.landing_in_cone
     np.testing.assert_allclose(timing.push_acceleration * push, leg.v0, atol=1e-9)
-    np.testing.assert_allclose(-timing.landing_acceleration * landing, leg.vimp, atol=1e-9)
+    # the contacts are made on the jump's parabola, at or after its node (``_touchdown``)
+    late = timing.touchdown - timing.takeoff - leg.duration
+    assert late >= -1e-9
+    flight = leg.duration + late
+    np.testing.assert_allclose(timing.touchdown_velocity, leg.v0 + leg.gravity * flight, atol=1e-9)
+    np.testing.assert_allclose(
+        timing.touchdown_com, leg.com0 + leg.v0 * flight + 0.5 * leg.gravity * flight**2, atol=1e-9
+    )
+    np.testing.assert_allclose(
+        -timing.landing_acceleration * landing, timing.touchdown_velocity, atol=1e-9
+    )
     # the curve's velocity is the jump's at takeoff and touchdown (just inside the flight)
     velocity = spec.com.derivative(1)
     np.testing.assert_allclose(velocity(timing.takeoff + 1e-9), leg.v0, atol=1e-6)
-    np.testing.assert_allclose(velocity(timing.touchdown - 1e-9), leg.vimp, atol=1e-6)
+    np.testing.assert_allclose(
+        velocity(timing.touchdown - 1e-9), timing.touchdown_velocity, atol=1e-6
+    )
 
 
 @pytest.mark.parametrize("rate", [24.0, 30.0, 60.0])
@@ -154,3 +177,40 @@ def test_a_jump_too_fast_for_the_legs_is_reported_in_its_timing() -> None:
     assert timing.takeoff - timing.push == pytest.approx(tuning.JUMP_MIN_STANCE_S)
     travel = float(np.linalg.norm(spec.com(timing.push) - leg.com0))
     assert travel > _reach(stances[0], leg.com0)
+
+
+def test_a_landing_touches_down_where_the_legs_follow_the_com_best() -> None:
+    """The humanoid's standing stance (knees nearly straight) moves its COM along a drop's
+    impact velocity at a fifth of its speed with its joints within their speed limits: the
+    contacts are made later on the parabola, the legs drawn up, in a crouch that moves it
+    faster relative to the touchdown speed, as far down as the landing's reach allows (no
+    crouch within it keeps up with this drop: the tracker lags less, it still lags)."""
+    character, stances, leg = _hexapod_jump(rise=-0.4, speed_scale=1.2, name="humanoid")
+    model = character.model
+    limits = speed_limits(model)
+    impact = float(np.linalg.norm(leg.vimp))
+    standing = com_speed(character, np.asarray(stances[1].q), stances[1], leg.vimp, limits)
+    assert standing < 0.3 * impact  # the case this is about
+    spec, (timing,) = jump_spec(character, stances, [leg])
+    late = timing.touchdown - timing.takeoff - leg.duration
+    assert late > 0.0
+    speed = float(np.linalg.norm(timing.touchdown_velocity))
+    # the COM falls below the node's at most a share of the landing's reach, and here as
+    # far as that allows (one more step would go beyond it)
+    reach = _reach(stances[1], com_position(model, np.asarray(stances[1].q)))
+
+    def drop(t: float) -> float:
+        at = leg.com0 + leg.v0 * t + 0.5 * leg.gravity * t * t
+        return float(np.linalg.norm(at - leg.com1))
+
+    flight = leg.duration + late
+    assert drop(flight) <= tuning.JUMP_TOUCHDOWN_SHARE * reach + 1e-9
+    assert drop(flight + tuning.JUMP_TOUCHDOWN_STEP_S) > tuning.JUMP_TOUCHDOWN_SHARE * reach
+    # the landing's posture starts in the crouch the contacts are made in, its COM at the
+    # touchdown COM, which moves the COM faster for its speed than the standing stance
+    landing = spec.phases[3]
+    assert landing.stance and landing.posture_from is not None
+    crouch = np.asarray(landing.posture_from)
+    np.testing.assert_allclose(com_position(model, crouch), timing.touchdown_com, atol=1e-9)
+    crouched = com_speed(character, crouch, stances[1], timing.touchdown_velocity, limits)
+    assert crouched / speed > 1.5 * standing / impact
