@@ -188,7 +188,7 @@ def _pace_row(name: str, tally: Tally) -> str:
     paper = next((v for k, v in PAPER_VALIDITY.items() if k in name), "-")
     return (
         f"{name:32s} {med(tally.pace, '.3f'):>6s} {med(tally.strides, '.2f'):>6s} {still:>6s} "
-        f"{valid:>6s} {whole:>6s} {paper:>6s} {med(tally.changes, 'd'):>5s} "
+        f"{valid:>6s} {whole:>6s} {paper:>6s} {med(tally.changes, '.0f'):>5s} "
         f"{med(tally.per_change, '.3f'):>6s}"
     )
 
