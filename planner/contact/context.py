@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import enum
 import math
+from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -28,8 +29,8 @@ Obstacle = tuple[Box | Capsule, FloatArray]
 _CACHE_SIZE = 512
 # values shared by every context of this process (see ContactContext.shared): key ->
 # (character, offline data, value)
-_SHARED: dict[Any, tuple[Character, OfflineData, Any]] = {}
-_SHARED_SIZE = 2048
+_SHARED: OrderedDict[Any, tuple[Character, OfflineData, Any]] = OrderedDict()
+_SHARED_SIZE = 2048  # entries kept, the least recently used dropped first
 
 
 class FailureReason(enum.Enum):
@@ -131,18 +132,21 @@ class ContactContext:
 
     def shared(self, key: Any, make: Callable[[], Any]) -> Any:
         """Memoise ``make()`` under ``key`` for every context of this process with the same
-        character and offline data (bounded; cleared when full). Only for a value that is a
+        character and offline data (the least recently used dropped past ``_SHARED_SIZE``:
+        a full memory no longer starts again from nothing). Only for a value that is a
         function of ``key``, the character and its offline data alone (never of the scene,
         the obstacles, the request or a rounded key), so that no answer depends on which
         request came before it: a Twister game asks for the same contact sets again."""
         full = (id(self.character), id(self.data), key)
         hit = _SHARED.get(full)
         if hit is not None and hit[0] is self.character and hit[1] is self.data:
+            _SHARED.move_to_end(full)
             return hit[2]
         value = make()
-        if len(_SHARED) >= _SHARED_SIZE:
-            _SHARED.clear()
         _SHARED[full] = (self.character, self.data, value)
+        _SHARED.move_to_end(full)
+        while len(_SHARED) > _SHARED_SIZE:
+            _SHARED.popitem(last=False)
         return value
 
     @property

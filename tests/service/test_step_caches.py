@@ -58,7 +58,7 @@ def _answer(request: dict[str, Any]) -> dict[str, Any]:
 
 def _cold(monkeypatch: pytest.MonkeyPatch) -> None:
     """Empty every per-process cache the Twister step fills."""
-    monkeypatch.setattr(context, "_SHARED", {})
+    monkeypatch.setattr(context, "_SHARED", OrderedDict())
     monkeypatch.setattr(kinematics_model, "_POOL", threading.local())
     monkeypatch.setattr(reachability, "_SUB_WORLDS", OrderedDict())
     monkeypatch.setattr(standing, "_FOOTPRINTS", {})
@@ -97,3 +97,28 @@ def test_borrowed_data_is_the_blocks_alone() -> None:
             assert inner is not outer
         with borrowed_data(model) as again:
             assert again is inner
+
+
+def test_shared_memory_drops_the_least_recently_used(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Past its size the process-wide memory drops its least recently used value, not all
+    of them: a value asked for again stays, the oldest other one is made anew."""
+    monkeypatch.setattr(context, "_SHARED", OrderedDict())
+    monkeypatch.setattr(context, "_SHARED_SIZE", 3)
+    character = get_character("quadruped")
+    ctx = context.ContactContext.__new__(context.ContactContext)
+    object.__setattr__(ctx, "character", character)
+    object.__setattr__(ctx, "data", object())
+    made: list[str] = []
+
+    def value(key: str) -> str:
+        return str(ctx.shared(key, lambda: made.append(key) or key))
+
+    for key in ("a", "b", "c"):
+        value(key)
+    value("a")  # used again: now the most recent
+    value("d")  # past the size: "b" goes
+    for key in ("a", "c", "d"):
+        value(key)
+    assert made == ["a", "b", "c", "d"]
+    value("b")
+    assert made == ["a", "b", "c", "d", "b"]
