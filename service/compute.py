@@ -34,9 +34,10 @@ from planner.termination import Deadline
 from service import convert, schemas
 from service.errors import ApiError, not_found
 from service.jobs import SqliteJobStore
+from service.quota import QuotaExceeded
 from service.registry import CharacterEntry, Registry
 from service.results import Kind, ResultStore, stored_result
-from service.roadmap_storage import RoadmapQuotaExceeded, admission, quota_exceeded
+from service.roadmap_storage import admission, quota_exceeded
 from service.workers import worker_registry, worker_settings
 from trajectory import TransitionCost
 
@@ -326,7 +327,7 @@ def build_roadmap_job(request_json: str, job_id: str, jobs_db: str) -> dict[str,
             progress=progress,
             admit=admission(settings.roadmaps_path, settings.roadmaps_quota_bytes),
         )
-    except RoadmapQuotaExceeded as exc:  # others' builds filled the quota meanwhile
+    except QuotaExceeded as exc:  # others' builds filled the quota meanwhile
         raise quota_exceeded(exc) from exc
     info = roadmaps.info(rid) or {}
     return {

@@ -12,15 +12,13 @@ removes them all; in memory, a few recently used ones are kept.
 
 from __future__ import annotations
 
-import fcntl
 import json
 import logging
 import os
 import tempfile
 import threading
 from collections import OrderedDict
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -46,12 +44,12 @@ from planner.scene import (
 from planner.scene.collision import bvh_cache_bytes, bvh_cache_path
 from planner.scene.io import validate_arrays
 from service.files import is_temporary
+from service.quota import QuotaExceeded, directory_lock
 
 log = logging.getLogger("gecko.registry")
 META_VERSION = 2  # metadata with a stored summary (version 1: the name only)
 META_ALLOWANCE_BYTES = 4096  # room kept for a scene's metadata file before it is written
 DETAIL_SUFFIX = ".detail.json"  # an uploaded scene's details (surfaces), as GET answers them
-LOCK_FILE = ".lock"  # in the scenes directory: serialises quota checks across processes
 
 
 @dataclass(frozen=True, slots=True)
@@ -306,7 +304,7 @@ class Registry:
             written.append(meta_tmp)
             # The metadata goes last: with it the scene is listed, and its other files are there.
             files[self._meta_file(scene_id)] = meta_tmp
-            with _scenes_lock(self.scenes_dir):
+            with directory_lock(self.scenes_dir):
                 if quota_bytes is not None:
                     adding = sum(_size(path) for path in (*written, bvh_file))
                     try:
@@ -345,7 +343,9 @@ class Registry:
     def _check_quota(self, quota_bytes: int, adding: int) -> None:
         used = self.uploaded_bytes()
         if used + adding > quota_bytes:
-            raise QuotaExceeded(used=used, adding=adding, quota=quota_bytes)
+            raise QuotaExceeded(
+                store="uploaded scenes", used=used, adding=adding, quota=quota_bytes
+            )
 
     def _meta_file(self, scene_id: str) -> Path:
         return self.scenes_dir / f"{scene_id}.json"
@@ -363,7 +363,7 @@ class Registry:
         if self.is_builtin(scene_id) or not _is_safe_id(scene_id):
             return False
         meta_file = self._meta_file(scene_id)
-        with _scenes_lock(self.scenes_dir):
+        with directory_lock(self.scenes_dir):
             existed = meta_file.exists()
             # The metadata goes first: without it the scene is no longer listed nor loaded.
             meta_file.unlink(missing_ok=True)
@@ -375,20 +375,6 @@ class Registry:
         content_hash = scene.content_hash if scene is not None else scene_id
         bvh_cache_path(self.cache_dir, content_hash).unlink(missing_ok=True)
         return existed
-
-
-class QuotaExceeded(Exception):
-    """Storing an uploaded scene would take the scenes directory past its quota (bytes)."""
-
-    def __init__(self, *, used: int, adding: int, quota: int) -> None:
-        super().__init__(used, adding, quota)
-        self.used, self.adding, self.quota = used, adding, quota
-
-    def __str__(self) -> str:
-        return (
-            f"uploaded scenes take {self.used} bytes; this one needs {self.adding} more, "
-            f"past the quota of {self.quota}"
-        )
 
 
 @dataclass(frozen=True, slots=True)
@@ -460,17 +446,6 @@ def _size(path: Path) -> int:
         return path.stat().st_size
     except OSError:
         return 0
-
-
-@contextmanager
-def _scenes_lock(directory: Path) -> Iterator[None]:
-    """Exclusive use of the scenes directory's quota across processes (an advisory lock)."""
-    with open(directory / LOCK_FILE, "a+b") as handle:
-        fcntl.flock(handle, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)
 
 
 def _temporary_text(directory: Path, text: str, suffix: str) -> Path:

@@ -9,37 +9,23 @@ A DELETE of a finished roadmap frees its bytes.
 
 from __future__ import annotations
 
-import fcntl
 from collections.abc import Callable, Iterator
 from contextlib import AbstractContextManager, contextmanager
 from pathlib import Path
 
 from planner.ballistic.planner import RoadmapStore
 from service.errors import INSUFFICIENT_STORAGE, ApiError
+from service.quota import QuotaExceeded, directory_lock
+
+STORE = "the stored roadmaps"
 
 ROADMAP_BYTES_PER_NODE = 1200
 """Bytes a stored roadmap takes per node, at most, for the estimate made before a build:
 measured 720 to 790 (.npz and .json) for the quadruped, the hexapod and the humanoid on the
 gaps, at 300 and 1,500 nodes (about 19 edges a node), and 1.5 times that."""
 
-LOCK_FILE = ".lock"  # in the roadmaps directory: serialises the quota checks of processes
 
-
-class RoadmapQuotaExceeded(Exception):
-    """Storing a roadmap would take the stored roadmaps past their quota (bytes)."""
-
-    def __init__(self, *, used: int, adding: int, quota: int) -> None:
-        super().__init__(used, adding, quota)
-        self.used, self.adding, self.quota = used, adding, quota
-
-    def __str__(self) -> str:
-        return (
-            f"the stored roadmaps take {self.used} bytes; {self.adding} more would go "
-            f"past the quota of {self.quota}"
-        )
-
-
-def quota_exceeded(exc: RoadmapQuotaExceeded, field: str = "nodes") -> ApiError:
+def quota_exceeded(exc: QuotaExceeded, field: str = "nodes") -> ApiError:
     """A 507 naming the roadmaps' quota and how to make room."""
     return ApiError(
         INSUFFICIENT_STORAGE,
@@ -51,38 +37,26 @@ def quota_exceeded(exc: RoadmapQuotaExceeded, field: str = "nodes") -> ApiError:
 
 
 def check_room(directory: Path, nodes: int, quota_bytes: int) -> None:
-    """Raise :class:`RoadmapQuotaExceeded` when a roadmap of ``nodes`` nodes, at its
+    """Raise :class:`QuotaExceeded` when a roadmap of ``nodes`` nodes, at its
     estimated size, would not fit beside the roadmaps stored in ``directory``."""
     used = RoadmapStore(directory).used_bytes()
     adding = nodes * ROADMAP_BYTES_PER_NODE
     if used + adding > quota_bytes:
-        raise RoadmapQuotaExceeded(used=used, adding=adding, quota=quota_bytes)
+        raise QuotaExceeded(store=STORE, used=used, adding=adding, quota=quota_bytes)
 
 
 def admission(directory: Path, quota_bytes: int) -> Callable[[int], AbstractContextManager[None]]:
     """The ``admit`` of ``RoadmapStore.save`` for the quota: entered with the size of the
     files to store, it holds the directory's lock and raises
-    :class:`RoadmapQuotaExceeded` when they would not fit."""
+    :class:`QuotaExceeded` when they would not fit."""
     store = RoadmapStore(directory)
 
     @contextmanager
     def admit(size: int) -> Iterator[None]:
-        with _locked(directory):
+        with directory_lock(directory):
             used = store.used_bytes()
             if used + size > quota_bytes:
-                raise RoadmapQuotaExceeded(used=used, adding=size, quota=quota_bytes)
+                raise QuotaExceeded(store=STORE, used=used, adding=size, quota=quota_bytes)
             yield
 
     return admit
-
-
-@contextmanager
-def _locked(directory: Path) -> Iterator[None]:
-    """Exclusive use of the roadmaps directory's quota across processes (advisory lock)."""
-    directory.mkdir(parents=True, exist_ok=True)
-    with open(directory / LOCK_FILE, "a+b") as handle:
-        fcntl.flock(handle, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)

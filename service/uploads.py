@@ -25,7 +25,7 @@ from planner.scene.counts import count_mesh
 from planner.scene.io import validate_arrays
 from service import convert
 from service.errors import INSUFFICIENT_STORAGE, ApiError
-from service.registry import QuotaExceeded
+from service.quota import QuotaExceeded
 from service.settings import Settings
 from service.workers import worker_registry, worker_settings
 

@@ -16,7 +16,8 @@ from service.errors import not_found
 from service.interactive import BUSY_RESPONSES
 from service.job_runner import JobContext
 from service.jobs import Job
-from service.roadmap_storage import RoadmapQuotaExceeded, check_room, quota_exceeded
+from service.quota import QuotaExceeded
+from service.roadmap_storage import check_room, quota_exceeded
 from service.routes.jobs import (
     CANCEL_RESPONSES,
     STORE_BUSY,
@@ -117,7 +118,7 @@ async def create_roadmap(
         await to_thread.run_sync(
             check_room, settings.roadmaps_path, body.nodes, settings.roadmaps_quota_bytes
         )
-    except RoadmapQuotaExceeded as exc:
+    except QuotaExceeded as exc:
         raise quota_exceeded(exc) from exc
     runner = runner_of(request)
     jobs_db = str(settings.jobs_db_path)

@@ -18,7 +18,8 @@ from planner.character import get_character
 from planner.offline import load_offline_data
 from planner.scene import load_builtin_scene
 from service.app import create_app
-from service.roadmap_storage import ROADMAP_BYTES_PER_NODE, RoadmapQuotaExceeded, admission
+from service.quota import QuotaExceeded
+from service.roadmap_storage import ROADMAP_BYTES_PER_NODE, admission
 from service.settings import Settings
 from tests.motion_audit import audit_from_json
 from tests.paths import gecko_cache_dir
@@ -269,7 +270,7 @@ def test_a_roadmap_past_the_quota_when_stored_leaves_nothing(tmp_path: Path) -> 
     source = RoadmapStore(tmp_path / "source")
     roadmap = source.load(source.build(scene, character, data, JumpParams(), 8, 0))
     store = RoadmapStore(tmp_path / "store")
-    with pytest.raises(RoadmapQuotaExceeded):
+    with pytest.raises(QuotaExceeded):
         store.save("abc", roadmap, {"nodes": 3}, admission(store.directory, 100))
     assert sorted(p.name for p in store.directory.iterdir() if p.name != ".lock") == []
     store.save("abc", roadmap, {"nodes": 3}, admission(store.directory, 1024 * 1024))

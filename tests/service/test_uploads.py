@@ -30,7 +30,8 @@ from planner.scene import content_hash, load_mesh
 from planner.scene.collision import bvh_cache_path
 from planner.scene.io import validate_arrays
 from service.app import create_app
-from service.registry import QuotaExceeded, Registry
+from service.quota import QuotaExceeded
+from service.registry import Registry
 from service.settings import Settings
 from tests.live_server import live_server
 from tests.mesh_files import grid_mesh, grid_ply, instanced_dae, instanced_glb
