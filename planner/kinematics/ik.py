@@ -35,6 +35,7 @@ from planner.kinematics.tasks import (
     TIER_WEIGHTS,
     ComTask,
     ContactNormalTask,
+    FrameAxisTask,
     FramePlacementTask,
     FramePositionTask,
     PostureTask,
@@ -51,7 +52,7 @@ _MAX_CLAMP_ROUNDS = 8
 _PATIENCE = 10  # iterations in a row not improving the best merit by _MIN_PROGRESS: give up
 _MIN_PROGRESS = 1e-3
 
-_PLACEMENT, _POSITION, _NORMAL, _COM = 0, 1, 2, 3
+_PLACEMENT, _POSITION, _NORMAL, _COM, _AXIS = 0, 1, 2, 3, 4
 
 
 @dataclass(frozen=True, slots=True)
@@ -190,6 +191,21 @@ def _compile(
             no_tangents,
             axes,
         )
+    if isinstance(task, FrameAxisTask):
+        return _Compiled(
+            index,
+            _AXIS,
+            fid,
+            weight,
+            2 if coupled else 0,
+            None,
+            zeros,
+            zeros,
+            np.asarray(task.axis),
+            np.asarray(task.direction),
+            _tangent_basis(np.asarray(task.direction)),
+            axes,
+        )
     has_offset = bool(np.any(task.offset != 0.0))
     if isinstance(task, FramePositionTask):
         return _Compiled(
@@ -232,7 +248,14 @@ def _validate_q(model: pin.Model, q0: ArrayLike) -> FloatArray:
 
 
 def _validate_tasks(model: pin.Model, tasks: Sequence[Task]) -> None:
-    kinds = (FramePlacementTask, FramePositionTask, ContactNormalTask, ComTask, PostureTask)
+    kinds = (
+        FramePlacementTask,
+        FramePositionTask,
+        ContactNormalTask,
+        FrameAxisTask,
+        ComTask,
+        PostureTask,
+    )
     for t in tasks:
         if not isinstance(t, kinds):
             raise TypeError(f"not an IK task: {type(t).__name__}")
@@ -336,8 +359,8 @@ class IkProblem:
     def set_target(self, index: int, target: ArrayLike) -> None:
         """Move the target of task ``index`` (its position in the task list): a pose (4, 4)
         for a FramePlacementTask, a point (3,) otherwise (the COM, or where a frame point
-        goes; a ContactNormalTask keeps its normal). Raises ValueError on a malformed target
-        and on a PostureTask."""
+        goes; a ContactNormalTask keeps its normal), the direction (3,) of a FrameAxisTask.
+        Raises ValueError on a malformed target and on a PostureTask."""
         c = self._by_index.get(index)
         if c is None:
             raise ValueError(f"task {index} has no target to move")
@@ -353,6 +376,13 @@ class IkProblem:
             return
         if t.shape != (3,):
             raise ValueError("target must be (3,)")
+        if c.kind == _AXIS:
+            norm = float(np.linalg.norm(t))
+            if norm < 1e-9:
+                raise ValueError("an axis task's direction must be non-zero")
+            c.normal = t / norm
+            c.tangents = _tangent_basis(c.normal)
+            return
         c.target = t
 
     def solve(self, q0: ArrayLike, max_iterations: int = 100) -> IkResult:
@@ -512,6 +542,15 @@ def _linearise(
             j_local = pin.getFrameJacobian(model, d, c.fid, pin.LOCAL)
             _store(pin.Jlog6(err_pose.inverse()) @ j_local, e, w, out_j, out_e, act)
         return math.sqrt(float(dp @ dp)), math.sqrt(float(e[3:] @ e[3:]))
+    if c.kind == _AXIS:
+        r, ang = _rotation_to(placement.rotation @ c.axis, c.normal, c.tangents)
+        if c.rows:
+            j = pin.getFrameJacobian(model, d, c.fid, pin.LOCAL_WORLD_ALIGNED)
+            if act is not None:
+                j = j[:, act]
+            np.multiply(c.tangents @ j[3:], w, out=out_j)
+            np.multiply(c.tangents @ r, w, out=out_e)
+        return 0.0, ang
     if c.kind == _POSITION and not c.has_offset:  # the common case, kept short
         e_pos = c.target - placement.translation
         lin = math.sqrt(float(e_pos @ e_pos))

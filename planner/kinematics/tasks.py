@@ -114,6 +114,30 @@ class ContactNormalTask:
 
 
 @dataclass(frozen=True, slots=True)
+class FrameAxisTask:
+    """Turn the axis ``axis`` (3,) of ``frame`` (frame coordinates) along the world
+    ``direction`` (3,): 2 rows, the turn about ``direction`` and the frame's position free (a
+    trunk kept upright whatever its yaw). Both vectors are normalised here."""
+
+    frame: int | str
+    direction: FloatArray
+    axis: FloatArray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
+    priority: Priority = Priority.EFFECTOR
+    weight: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in ("direction", "axis"):
+            v = np.array(_vector(getattr(self, name), 3, name))
+            norm = float(np.linalg.norm(v))
+            if norm < 1e-9:
+                raise ValueError(f"{name} must be non-zero")
+            v /= norm
+            v.flags.writeable = False
+            object.__setattr__(self, name, v)
+        _check_weight(self.weight)
+
+
+@dataclass(frozen=True, slots=True)
 class ComTask:
     """Bring the centre of mass to ``target`` (3,) along the selected world ``axes``
     (e.g. ``(True, True, False)`` for x and y only)."""
@@ -159,5 +183,5 @@ class PostureTask:
             raise ValueError(f"gain must be in (0, 1], got {self.gain}")
 
 
-TargetTask = FramePlacementTask | FramePositionTask | ContactNormalTask | ComTask
+TargetTask = FramePlacementTask | FramePositionTask | ContactNormalTask | FrameAxisTask | ComTask
 Task = TargetTask | PostureTask

@@ -43,6 +43,7 @@ import trajectory
 from planner.character import Character
 from planner.kinematics import (
     ComTask,
+    FrameAxisTask,
     FramePlacementTask,
     FramePositionTask,
     PostureTask,
@@ -50,6 +51,7 @@ from planner.kinematics import (
     Task,
     com_position,
     frame_placement,
+    frame_placements,
     solve_ik,
 )
 from planner.motion import tuning
@@ -207,7 +209,12 @@ def _crouched(
     toward it), and whether the COM got there (within 1 mm); when not, the nearest the IK
     found. A push's crouch and a landing's end are aimed at it: pulled toward the standing
     posture, the tracker met a joint limit (an ankle's dorsiflexion, the torso's pitch) and
-    held the humanoid's COM 40 mm off a point the legs reach with the torso bent."""
+    held the humanoid's COM 40 mm off a point the legs reach with the torso bent. The trunk
+    (a free-flyer root) keeps the tilt of ``state.q`` (its up axis, yaw free:
+    ``JUMP_CROUCH_TRUNK_WEIGHT``): the legs fold at the hips as the knees bend and the chest
+    leans forward over the feet; without it, the IK lowered the COM with the hips' angles
+    kept and the pelvis pitched backward by up to 42 degrees, the tracked landing squat
+    leaning back with it."""
     model = character.model
     if not state.contacts:
         return np.array(state.q, dtype=np.float64), False
@@ -219,16 +226,29 @@ def _crouched(
             holds.append(FramePositionTask(limb.frame_id, target, np.zeros(3), Priority.CONTACT))
         else:
             holds.append(FramePlacementTask(limb.frame_id, c.placement, Priority.CONTACT))
+    root_nv = _root_nv(model)
     weights = np.ones(model.nv)
-    weights[: _root_nv(model)] = 0.0
+    weights[:root_nv] = 0.0
+    trunk: list[Task] = []
+    if root_nv:
+        frames = [_ROOT_FRAME, *_chest_frames(character)]
+        placed = frame_placements(model, state.q, frames)
+        trunk = [
+            FrameAxisTask(f, pose[:3, 2], weight=tuning.JUMP_CROUCH_TRUNK_WEIGHT)
+            for f, pose in zip(frames, placed, strict=True)
+        ]
+    tasks: list[Task] = [*holds, ComTask(point), *trunk]
     result = solve_ik(
         model,
         state.q,
-        [*holds, ComTask(point), PostureTask(state.q, weights, gain=0.3)],
+        [*tasks, PostureTask(state.q, weights, gain=0.3)],
         max_iterations=tuning.JUMP_CROUCH_IK_ITERATIONS,
         tolerance=1e-3,
     )
-    return np.array(result.q, dtype=np.float64), bool(result.success)
+    # reached: the contacts held and the COM there (the trunk's tilt is a preference)
+    held = result.residuals[: len(holds) + 1]
+    reached = bool(np.all(held[:, 0] <= 1e-3) and np.all(held[:, 1] <= 1e-3))
+    return np.array(result.q, dtype=np.float64), reached
 
 
 def _touchdown(
@@ -307,6 +327,24 @@ def com_speed(
         cost, A_eq=a_eq, b_eq=np.zeros(len(a_eq)), bounds=[*bounds, (0.0, None)], method="highs"
     )
     return float(result.x[nv]) if result.success else 0.0
+
+
+_ROOT_FRAME = 1
+"""The frame of the root joint (pinocchio's frame 0 is the universe)."""
+
+
+def _chest_frames(character: Character) -> tuple[int, ...]:
+    """The frame (a 1-tuple) of the chest, or none: the deepest joint, in no limb and not the root,
+    that carries a limb (a humanoid's torso joint that holds the shoulders; a body whose
+    limbs all hang from the root has none)."""
+    model = character.model
+    in_limbs = {int(j) for limb in character.limbs for j in limb.joint_ids}
+    carriers = {int(model.parents[int(limb.joint_ids[0])]) for limb in character.limbs}
+    chest = [j for j in carriers if j > 1 and j not in in_limbs]
+    if not chest:
+        return ()
+    deepest = max(chest, key=lambda j: len(model.supports[j]))
+    return (int(model.getFrameId(model.names[deepest], pin.FrameType.JOINT)),)
 
 
 def _root_nv(model: Any) -> int:

@@ -286,6 +286,13 @@ JUMP_CROUCH_IK_ITERATIONS = 60
 """Iterations of the whole-body IK that crouches a jump's stance (its COM moved, the
 contacts held: ``planner.motion.jump._crouched``)."""
 
+JUMP_CROUCH_TRUNK_WEIGHT = 1.0
+"""Weight (in the IK's effector tier, below the COM) of the crouch's trunk keeping the tilt
+of its stance (``planner.motion.jump._crouched``): the humanoid's crouches and landings in
+the jump scenarios keep their pelvis within 12 degrees of upright (most within one; it
+was up to 42 degrees backward), the COM still within 1 mm of its target (the hips fold,
+the torso leans forward instead)."""
+
 JUMP_POSTURE_COST = 3.0
 """Cost of the posture pull in a jump's push and landing, whose posture target moves
 along the whole-body IK's crouch with the COM (``MotionPhase.posture_from``): pulled only

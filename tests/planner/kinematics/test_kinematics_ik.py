@@ -10,8 +10,10 @@ import pytest
 from planner.kinematics import (
     ComTask,
     ContactNormalTask,
+    FrameAxisTask,
     FramePlacementTask,
     FramePositionTask,
+    IkProblem,
     PostureTask,
     Priority,
     com_position,
@@ -197,3 +199,33 @@ def test_problem_with_moved_targets_solves_like_solve_ik(robot: Robot, perturb: 
         problem.set_target(hand_index, np.full(3, np.nan))
     with pytest.raises(ValueError):
         problem.solve(q, max_iterations=-1)
+
+
+def test_axis_task_turns_one_axis_leaving_yaw_and_position_free(
+    biped: Robot, perturb: Perturb
+) -> None:
+    model = biped.model
+    q_target = perturb(model, np.random.default_rng(11), biped.q_stand, 0.3)
+    pose = frame_placement(model, q_target, "left_sole")
+    task = FrameAxisTask("left_sole", pose[:3, 2])
+    result = solve_ik(model, biped.q_stand, [task], lock_root=True)
+    assert result.success
+    reached = frame_placement(model, result.q, "left_sole")
+    assert np.arccos(np.clip(reached[:3, 2] @ pose[:3, 2], -1, 1)) <= 1e-3
+    # the two rows it adds leave the sole free to move and to turn about the axis: held in
+    # place with the same axis, it reaches that too
+    start = frame_placement(model, biped.q_stand, "left_sole")
+    held = FramePositionTask("left_sole", start[:3, 3], priority=Priority.CONTACT)
+    both = solve_ik(model, biped.q_stand, [held, task], lock_root=True)
+    assert both.success
+    placed = frame_placement(model, both.q, "left_sole")
+    assert np.linalg.norm(placed[:3, 3] - start[:3, 3]) <= 1e-4
+    with pytest.raises(ValueError, match="non-zero"):
+        FrameAxisTask("left_sole", np.zeros(3))
+    # a compiled problem turns the axis toward a moved direction as a fresh one does
+    problem = IkProblem(model, [FrameAxisTask("left_sole", start[:3, 2])], lock_root=True)
+    problem.set_target(0, 2.0 * pose[:3, 2])
+    moved = problem.solve(biped.q_stand)
+    assert np.array_equal(moved.q, result.q)
+    with pytest.raises(ValueError, match="non-zero"):
+        problem.set_target(0, np.zeros(3))

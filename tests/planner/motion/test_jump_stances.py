@@ -15,11 +15,12 @@ from planner.character import Character
 from planner.contact.checks import make_contact
 from planner.contact.context import make_context
 from planner.contact.state import ContactState
-from planner.kinematics import com_position
+from planner.kinematics import com_position, frame_placements
 from planner.motion import tuning
 from planner.motion.builder import keyframe_grid
 from planner.motion.jump import (
     JumpLeg,
+    _chest_frames,
     _reach,
     com_speed,
     in_cone,
@@ -214,3 +215,35 @@ def test_a_landing_touches_down_where_the_legs_follow_the_com_best() -> None:
     np.testing.assert_allclose(com_position(model, crouch), timing.touchdown_com, atol=1e-9)
     crouched = com_speed(character, crouch, stances[1], timing.touchdown_velocity, limits)
     assert crouched / speed > 1.5 * standing / impact
+
+
+@pytest.mark.parametrize("rise", [-0.4, 0.0, 0.3])
+def test_a_humanoid_crouches_with_its_trunk_upright_over_its_feet(rise: float) -> None:
+    """The crouches a jump's stance phases aim at (the push's start, the landing's start and
+    end) keep the pelvis at the stance's tilt and the chest within 30 degrees of upright:
+    the IK lowering the COM with the hips' angles kept pitched the humanoid's pelvis 22 to
+    31 degrees backward (the tracked landing squat leaned back)."""
+    character, stances, leg = _hexapod_jump(rise=rise, speed_scale=1.0, name="humanoid")
+    model = character.model
+    (chest,) = _chest_frames(character)
+    spec, _ = jump_spec(character, stances, [leg])
+    crouches = [
+        np.asarray(q)
+        for phase in spec.phases
+        if phase.stance
+        for q in (phase.posture, phase.posture_from)
+        if q is not None
+    ]
+    assert len(crouches) >= 4
+    for q in crouches:
+        pelvis, torso = frame_placements(model, q, [1, chest])
+        assert math.degrees(math.acos(min(1.0, pelvis[2, 2]))) <= 2.0
+        assert math.degrees(math.acos(min(1.0, torso[2, 2]))) <= 30.0
+    # the crouches do bend the legs: at the landing's end the COM is well nearer the feet
+    feet = [character.limb(c.limb).frame_id for c in stances[1].contacts]
+
+    def height(q: np.ndarray) -> float:
+        soles = frame_placements(model, q, feet)[:, 2, 3]
+        return float(com_position(model, q)[2] - soles.mean())
+
+    assert height(np.asarray(spec.phases[3].posture)) < height(np.asarray(stances[1].q)) - 0.05
