@@ -41,6 +41,17 @@ def _vector(value: object, size: int, name: str) -> FloatArray:
     return out
 
 
+def _unit(value: object, name: str) -> FloatArray:
+    """``value`` as a read-only unit (3,) vector; ValueError naming ``name`` if zero."""
+    v = np.array(_vector(value, 3, name))
+    norm = float(np.linalg.norm(v))
+    if norm < 1e-9:
+        raise ValueError(f"{name} must be non-zero")
+    v /= norm
+    v.flags.writeable = False
+    return v
+
+
 def _check_weight(weight: float) -> None:
     if not (np.isfinite(weight) and weight > 0.0):
         raise ValueError(f"weight must be finite and positive, got {weight}")
@@ -103,13 +114,7 @@ class ContactNormalTask:
         object.__setattr__(self, "target", _vector(self.target, 3, "target"))
         object.__setattr__(self, "offset", _vector(self.offset, 3, "offset"))
         for name in ("normal", "axis"):
-            v = np.array(_vector(getattr(self, name), 3, name))
-            norm = float(np.linalg.norm(v))
-            if norm < 1e-9:
-                raise ValueError(f"{name} must be non-zero")
-            v /= norm
-            v.flags.writeable = False
-            object.__setattr__(self, name, v)
+            object.__setattr__(self, name, _unit(getattr(self, name), name))
         _check_weight(self.weight)
 
 
@@ -127,13 +132,7 @@ class FrameAxisTask:
 
     def __post_init__(self) -> None:
         for name in ("direction", "axis"):
-            v = np.array(_vector(getattr(self, name), 3, name))
-            norm = float(np.linalg.norm(v))
-            if norm < 1e-9:
-                raise ValueError(f"{name} must be non-zero")
-            v /= norm
-            v.flags.writeable = False
-            object.__setattr__(self, name, v)
+            object.__setattr__(self, name, _unit(getattr(self, name), name))
         _check_weight(self.weight)
 
 
