@@ -222,18 +222,22 @@ class _Targets:
             normal = self.character.limb(swing.limb).normal
             # the arc lands a little before the phase ends: the effector, which lags its
             # target by a few control steps, settles on its contact before it must hold it
-            settle = min(
-                tuning.LANDING_SETTLE_S, tuning.LANDING_SETTLE_SHARE * (phase.t1 - phase.t0)
-            )
             self._arcs[key] = swing_trajectory(
                 swing.start,
                 swing.end,
                 phase.t0,
-                phase.t1 - settle,
+                self.landing(phase),
                 lift=lift,
                 normal_in_frame=normal,
             )
         return self._arcs[key]
+
+    @staticmethod
+    def landing(phase: MotionPhase) -> float:
+        """s, when the swing arc of ``phase`` reaches its landing: ``LANDING_SETTLE_S`` (at
+        most ``LANDING_SETTLE_SHARE`` of the phase) before the phase ends."""
+        settle = min(tuning.LANDING_SETTLE_S, tuning.LANDING_SETTLE_SHARE * (phase.t1 - phase.t0))
+        return phase.t1 - settle
 
     def released(self, k: int) -> tuple[str, ...]:
         """The limbs of phase ``k - 1``'s stance that phase ``k`` no longer holds."""
@@ -306,8 +310,12 @@ class _Targets:
         com = self.com(t)
         arc = self.arc(k)
         swing = None
+        settle = 0.0
         if arc is not None and phase.swing is not None:
             swing = (phase.swing.limb, np.asarray(arc(t), dtype=np.float64))
+            landing = self.landing(phase)
+            if t > landing:
+                settle = (t - landing) / max(phase.t1 - landing, 1e-9)
         stance = self._stances.get(k)
         if stance is None:
             stance = tuple((c.limb, np.asarray(c.placement)) for c in phase.stance)
@@ -321,6 +329,7 @@ class _Targets:
                 k not in self.unguarded,
                 phase.level_trunk,
                 rigid_stance=phase.rigid_stance,
+                swing_settle=settle,
             )
         # a fast COM: its target unsaturated, the trunk height aimed with it
         posture = np.array(phase.posture, dtype=np.float64)
@@ -352,6 +361,7 @@ class _Targets:
             rigid_stance=phase.rigid_stance,
             root_bounded=False,
             posture_led=phase.posture_from is not None,
+            swing_settle=settle,
         )
 
 

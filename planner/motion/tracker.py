@@ -81,6 +81,10 @@ class StepTargets:
     target the joints track dead-beat (``TASK_GAIN``, unsaturated) at ``JUMP_POSTURE_COST``
     (a jump's push and landing, led along the whole-body IK's crouch), instead of a
     gentle pull (``POSTURE_GAIN``, ``POSTURE_MAX_ERROR``) at ``POSTURE_COST``.
+    swing_settle : share (0 to 1) of the swing's landing settle (``LANDING_SETTLE_S``) gone
+    by: the effector's cost rises from the swing's to ``SETTLE_COST`` with it (and as it
+    comes within ``SETTLE_REACH`` of its landing), so that it is pulled onto the contact it is
+    about to hold (0 before its arc has landed).
     """
 
     stance: tuple[tuple[str, FloatArray], ...]
@@ -95,6 +99,7 @@ class StepTargets:
     rigid_stance: bool = False
     root_bounded: bool = True
     posture_led: bool = False
+    swing_settle: float = 0.0
 
 
 def effector_geometries(character: Character) -> dict[str, frozenset[int]]:
@@ -187,6 +192,7 @@ class _CharacterTerms:
     frame_ids: dict[str, int]
     stance_weights: dict[str, tuple[FloatArray, IntArray | slice]]
     swing_weights: dict[str, tuple[FloatArray, IntArray | slice]]
+    settle_weights: dict[str, tuple[FloatArray, IntArray | slice]]
     rigid_keep: dict[str, slice]
     trunk_weights: FloatArray
     trunk_keep: IntArray | slice
@@ -223,6 +229,7 @@ def _character_terms(character: Character) -> _CharacterTerms:
     # position then orientation, in the frame), and those rows' indices
     stance_weights: dict[str, tuple[FloatArray, IntArray | slice]] = {}
     swing_weights: dict[str, tuple[FloatArray, IntArray | slice]] = {}
+    settle_weights: dict[str, tuple[FloatArray, IntArray | slice]] = {}
     rigid_keep: dict[str, slice] = {}
     for limb in character.limbs:
         patch = limb.contact == "patch"
@@ -231,6 +238,9 @@ def _character_terms(character: Character) -> _CharacterTerms:
         )
         swing_weights[limb.name] = _nonzero(
             tuning.SWING_POSITION_COST, tuning.SWING_ORIENTATION_COST if patch else 0.0
+        )
+        settle_weights[limb.name] = _nonzero(
+            tuning.SETTLE_COST, tuning.SETTLE_COST if patch else 0.0
         )
         rigid_keep[limb.name] = slice(0, 6) if patch else slice(0, 3)
     trunk_weights, trunk_keep = _nonzero(
@@ -255,6 +265,7 @@ def _character_terms(character: Character) -> _CharacterTerms:
     arrays = [trunk_weights, trunk_keep, *speeds.values(), *speed_index.values()]
     arrays += [*g_limits.values(), *(x for pair in stance_weights.values() for x in pair)]
     arrays += [x for pair in swing_weights.values() for x in pair]
+    arrays += [x for pair in settle_weights.values() for x in pair]
     for array in arrays:
         if isinstance(array, np.ndarray):
             _read_only(array)
@@ -263,6 +274,7 @@ def _character_terms(character: Character) -> _CharacterTerms:
         frame_ids={limb.name: int(limb.frame_id) for limb in character.limbs},
         stance_weights=stance_weights,
         swing_weights=swing_weights,
+        settle_weights=settle_weights,
         rigid_keep=rigid_keep,
         trunk_weights=trunk_weights,
         trunk_keep=trunk_keep,
@@ -312,6 +324,7 @@ class WholeBodyTracker:
         self._frame_ids = terms.frame_ids
         self._stance_weights = terms.stance_weights
         self._swing_weights = terms.swing_weights
+        self._settle_weights = terms.settle_weights
         self._rigid_keep = terms.rigid_keep
         self._trunk_weights, self._trunk_keep = terms.trunk_weights, terms.trunk_keep
         self.geometry_data = pin.GeometryData(character.motion_geometry)
@@ -445,11 +458,18 @@ class WholeBodyTracker:
             skipped |= self.effectors[limb]
         moving = [] if targets.swing is None else [targets.swing]
         moving += list(targets.carried)
-        for limb, pose in moving:
+        for n, (limb, pose) in enumerate(moving):
             frame = self._frame_ids[limb]
             goal = _saturated(data.oMf[frame].translation, pose[:3, 3], tuning.SWING_MAX_ERROR)
             jac, err = self._frame_error(frame, pin.SE3(pose[:3, :3], goal))
             weights, keep = self._swing_weights[limb]
+            if n == 0 and targets.swing is not None and targets.swing_settle > 0.0:
+                # seated as a contact once near it; an effector still far (held back, now
+                # catching up) must not drag the stance contacts
+                gap = float(np.linalg.norm(data.oMf[frame].translation - pose[:3, 3]))
+                near = max(0.0, 1.0 - gap / tuning.SETTLE_REACH)
+                seat = min(1.0, targets.swing_settle) * near
+                weights = weights + seat * (self._settle_weights[limb][0] - weights)
             rows.append(weights[:, None] * jac[keep])
             errors.append(weights * (-tuning.TASK_GAIN * err[keep]))
         guarded = [limb for limb, _ in targets.carried]

@@ -162,6 +162,18 @@ switches and the contact is held (without it, the first held keyframe jumps up t
 LANDING_SETTLE_SHARE = 0.2
 """Largest share of a swing phase given to the landing settle."""
 
+SETTLE_COST = STANCE_COST
+"""The swinging effector's task cost (position, and orientation of a patch) once its arc has
+reached the landing (the settle): the contact it is about to hold, weighted as held. At
+``SWING_POSITION_COST`` a hand reaching onto a climbing hold whose forearm met its collision
+damper stalled 8-10 mm short (the body had to shift, against the COM's cost), and the stance
+task pulled it in at the phase switch in one keyframe, dragging the other hand 5 mm."""
+
+SETTLE_REACH = 0.03
+"""m: the settle's cost rises as the effector comes nearer its landing than this (in full at
+the landing): a foot held back far above its step that catches up in the settle must not
+outweigh the stance contacts (at full cost 23 cm above its landing, it dragged them 7 mm)."""
+
 LANDING_TOLERANCE = 0.02
 """m: a swing whose effector ends further than this from its arc's end has not landed."""
 

@@ -71,9 +71,24 @@ class PinkReference:
             task.set_target(pin.SE3(pose[:3, :3].copy(), pose[:3, 3].copy()))
             out.append(task)
         moving = [] if targets.swing is None else [targets.swing]
-        for limb, pose in [*moving, *targets.carried]:
+        for n, (limb, pose) in enumerate([*moving, *targets.carried]):
             task = self.swing[limb]
             here = self.data.oMf[self.tracker.character.limb(limb).frame_id].translation
+            # the landing settle: the swing's cost raised toward SETTLE_COST, by the share
+            # of the settle gone by and as the effector nears its landing
+            share_settle = 0.0
+            if n == 0 and moving and targets.swing_settle > 0.0:
+                near = max(
+                    0.0, 1.0 - float(np.linalg.norm(here - pose[:3, 3])) / tuning.SETTLE_REACH
+                )
+                share_settle = min(1.0, targets.swing_settle) * near
+            patch = self.tracker.character.limb(limb).contact == "patch"
+            position = tuning.SWING_POSITION_COST
+            orientation = tuning.SWING_ORIENTATION_COST if patch else 0.0
+            settled = tuning.SETTLE_COST
+            task.set_position_cost(position + share_settle * (settled - position))
+            if patch:
+                task.set_orientation_cost(orientation + share_settle * (settled - orientation))
             goal = _saturated(here, pose[:3, 3], tuning.SWING_MAX_ERROR)
             task.set_target(pin.SE3(pose[:3, :3].copy(), goal))
             out.append(task)

@@ -112,3 +112,30 @@ def test_a_checker_sharing_the_trackers_bounds_checks_as_one_of_its_own() -> Non
         q = tracker.step(q, targets.at(k * dt), dt)
         if k % 3 == 0:
             assert shared.check(q, stance) == alone.check(q, stance)
+
+
+def test_a_settling_swing_is_weighted_as_the_contact_it_lands_on() -> None:
+    """At its landing at the end of the settle, the swing task is the stance task it is
+    about to become; SETTLE_REACH or further from it, the plain swing task."""
+    ctx, spec = _spec(False)
+    tracker = WholeBodyTracker(ctx.character, ctx.scene.collision.bvh)
+    targets = _Targets(ctx.character, spec)
+    q = np.array(spec.q_start)
+    settling = targets.at(spec.phases[0].t1)
+    assert settling.swing is not None and settling.swing_settle == pytest.approx(1.0)
+    assert targets.at(0.5 * spec.phases[0].t1).swing_settle == 0.0
+    limb = settling.swing[0]
+    pin.framesForwardKinematics(tracker.model, tracker.data, q)
+    here = tracker.data.oMf[ctx.character.limb(limb).frame_id].homogeneous
+    landed = dataclasses.replace(settling, swing=(limb, here))
+    held = dataclasses.replace(settling, swing=None, stance=(*settling.stance, (limb, here)))
+    a, b = tracker.objective(q, landed), tracker.objective(q, held)
+    _same(a.hessian, b.hessian, "H")
+    _same(a.linear, b.linear, "c")
+    far = here.copy()
+    far[2, 3] += tuning.SETTLE_REACH
+    c = tracker.objective(q, dataclasses.replace(settling, swing=(limb, far)))
+    d = tracker.objective(q, dataclasses.replace(settling, swing=(limb, far), swing_settle=0.0))
+    _same(c.hessian, d.hessian, "H far")
+    _same(c.linear, d.linear, "c far")
+    assert np.max(np.abs(a.hessian - d.hessian)) > 1.0  # the settle changed the weights
