@@ -49,9 +49,11 @@ from planner.kinematics import (
     PostureTask,
     Priority,
     Task,
+    borrowed_data,
     com_position,
     frame_placement,
     frame_placements,
+    has_free_flyer_root,
     solve_ik,
 )
 from planner.motion import tuning
@@ -226,11 +228,12 @@ def _crouched(
             holds.append(FramePositionTask(limb.frame_id, target, np.zeros(3), Priority.CONTACT))
         else:
             holds.append(FramePlacementTask(limb.frame_id, c.placement, Priority.CONTACT))
-    root_nv = _root_nv(model)
+    free_root = has_free_flyer_root(model)
     weights = np.ones(model.nv)
-    weights[:root_nv] = 0.0
+    if free_root:
+        weights[:6] = 0.0  # the root's tangent dofs: the trunk tasks decide them
     trunk: list[Task] = []
-    if root_nv:
+    if free_root:
         frames = [_ROOT_FRAME, *_chest_frames(character)]
         placed = frame_placements(model, state.q, frames)
         trunk = [
@@ -305,15 +308,15 @@ def com_speed(
     for a patch) and each joint within ``limits`` (nv,) rad/s (the root free): a linear
     program over the joint velocities."""
     model = character.model
-    data = model.createData()
     unit = np.asarray(direction, dtype=np.float64) / max(float(np.linalg.norm(direction)), 1e-12)
-    jcom = pin.jacobianCenterOfMass(model, data, np.asarray(q, dtype=np.float64))
-    pin.updateFramePlacements(model, data)
     rows = []
-    for c in state.contacts:
-        limb = character.limb(c.limb)
-        jac = pin.getFrameJacobian(model, data, limb.frame_id, pin.LOCAL)
-        rows.append(jac[:3] if limb.contact == "point" else jac)
+    with borrowed_data(model) as data:
+        jcom = np.array(pin.jacobianCenterOfMass(model, data, np.asarray(q, dtype=np.float64)))
+        pin.updateFramePlacements(model, data)
+        for c in state.contacts:
+            limb = character.limb(c.limb)
+            jac = pin.getFrameJacobian(model, data, limb.frame_id, pin.LOCAL)
+            rows.append(jac[:3] if limb.contact == "point" else jac)
     nv = model.nv
     # variables (qdot (nv,), s): max s with J_com qdot = s unit, J_c qdot = 0
     a_eq = np.zeros((3 + sum(len(r) for r in rows), nv + 1))
@@ -345,11 +348,6 @@ def _chest_frames(character: Character) -> tuple[int, ...]:
         return ()
     deepest = max(chest, key=lambda j: len(model.supports[j]))
     return (int(model.getFrameId(model.names[deepest], pin.FrameType.JOINT)),)
-
-
-def _root_nv(model: Any) -> int:
-    """Tangent dofs of a free-flyer root (6), 0 for a fixed base."""
-    return 6 if model.njoints > 1 and model.joints[1].nq == 7 else 0
 
 
 def _quadratic(p0: FloatArray, p1: FloatArray, p2: FloatArray, t0: float, t1: float) -> Any:
