@@ -275,6 +275,7 @@ def plan_contact_motion(
 
     best: tuple[PlanResult[tuple[ContactState, ...]], FloatArray, PlanResult[Any]] | None = None
     attempts = 0
+    stranded = False  # a walk stalled unable to release a leg it left behind
     for jitter in _RETRY_JITTERS:
         # A stuck walk is retried on a new guide path with noisier foothold choices; the
         # best attempt (SOLVED, else the furthest along) is kept.
@@ -304,7 +305,14 @@ def plan_contact_motion(
             poses = path.value.resample(opts.sequence.spacing)
             if max_pitch > LEVEL_PITCH:
                 poses = follow_slope(checker, poses, max_pitch=max_pitch)
-        params = replace(opts.sequence, jitter=max(opts.sequence.jitter, jitter))
+        # after a walk stalled unable to release a leg it left behind (its body stretched
+        # over it), the retries keep the legs behind the body releasable; elsewhere the guard
+        # would only cost steps that lead on (rubble_quadruped's plan at its seed)
+        params = replace(
+            opts.sequence,
+            jitter=max(opts.sequence.jitter, jitter),
+            release_guard=opts.sequence.release_guard or stranded,
+        )
         sequence = contact_sequence(
             ctx,
             start_state.value,
@@ -316,6 +324,7 @@ def plan_contact_motion(
             limbs=opts.limbs,
         )
         lap("contacts")
+        stranded = stranded or bool(sequence.stats.get("stranded"))
         if best is None or _better(sequence, best[0]):
             best = (sequence, poses, path)
     assert best is not None

@@ -19,6 +19,11 @@ The root path is a guide, not a constraint. The walker repeats a gait cycle:
    tried. A stuck walker looks further ahead for footholds (stepping stones), then
    repositions a limb.
 
+With ``release_guard`` (the planner's retries once a walk stalled unable to release a leg it
+left behind, ``stats["stranded"]``), neither an advance nor a step may leave a leg behind the
+body that it could release where it cannot release it any more: a climber's rear leg left on
+a lower row as the body and the front legs move on stretches the body until no leg can move.
+
 Optional limbs (``limbs``, say a hand for a handrail) take a foothold only near their
 nominal position and are let go when none is left.
 
@@ -117,7 +122,9 @@ class SequenceParams:
     cycle per walking limb) without the body getting further along the guide before giving
     up (steps that lead nowhere; the planner then retries along a new guide). jitter : m,
     scale of the random term added to the scores of contact candidates (``create_contact``'s
-    ``randomness``); retries raise it.
+    ``randomness``); retries raise it. release_guard : no advance or step leaves a leg behind
+    the body unable to be released when it could be before (the planner's retries after a
+    walk stalled unable to release a leg behind; plans whose walks never strand are unchanged).
     """
 
     spacing: float = 0.05
@@ -129,6 +136,7 @@ class SequenceParams:
     max_stuck: int = 3
     idle_rounds: int = 6
     jitter: float = 0.05
+    release_guard: bool = False
 
     def __post_init__(self) -> None:
         if not 0 < self.spacing <= 0.5:
@@ -473,6 +481,32 @@ def contact_sequence(
         others = [c.limb for c in state.contacts if c.limb != moved and c.limb in legs]
         return not others or any(break_contact(ctx, state, x).ok for x in others)
 
+    def stranding(before: ContactState, after: ContactState, moved: str | None = None) -> bool:
+        # with ``release_guard``: whether a leg behind the root along the guide (an advance
+        # takes the body further from it), other than ``moved``, that ``before`` can release
+        # cannot be released from ``after``
+        if not p.release_guard:
+            return False
+        root, ahead = np.asarray(before.q[:3]), guide.tangent(s)
+        behind = [
+            c.limb
+            for c in before.contacts
+            if c.limb in legs and c.limb != moved and (c.position - root) @ ahead < 0
+        ]
+        return any(
+            break_contact(ctx, before, x).ok and not break_contact(ctx, after, x).ok for x in behind
+        )
+
+    def stranded() -> bool:
+        # a stalled walk whose body cannot release a leg it left behind (the
+        # ``release_guard``'s case: the planner retries with it)
+        root, ahead = np.asarray(current.q[:3]), guide.tangent(s)
+        return any(
+            not break_contact(ctx, current, c.limb).ok
+            for c in current.contacts
+            if c.limb in legs and (c.position - root) @ ahead < 0
+        )
+
     def step(limb: str, target: FloatArray, reposition: bool = False) -> bool:
         nonlocal current
         old = current.contact(limb)
@@ -508,6 +542,8 @@ def contact_sequence(
                 continue
             if not reposition and limb in legs and not _followable(made.state, limb):
                 continue
+            if stranding(current, made.state, limb):
+                continue  # a leg behind would be left where it cannot be released
             if base is not current:
                 states.append(base)
                 stats["breaks"] = int(stats["breaks"]) + 1
@@ -546,6 +582,8 @@ def contact_sequence(
                     continue
                 if kinematic_slack(ctx, advanced) < min(slack, _ADVANCE_SLACK):
                     continue  # a leg would be left at the end of its range
+                if stranding(current, advanced):
+                    continue  # a leg behind would be left where it cannot be released
                 new_s = guide.progress(advanced.q[:3], s)
                 if new_s > s + 1e-3:
                     current = advanced  # same contacts: the body moves within the phase
@@ -606,6 +644,7 @@ def contact_sequence(
         else:
             idle += 1
         if idle > p.idle_rounds * len(order):
+            stats["stranded"] = int(stranded())
             return result(
                 PlanStatus.APPROXIMATE,
                 f"no progress in {p.idle_rounds} gait rounds at {s:.2f} m of {guide.length:.2f} m",
@@ -616,6 +655,7 @@ def contact_sequence(
         stuck += 1
         if stuck > p.max_stuck:
             far = ", ".join(f"{x} {gaps[x]:.2f} m" for x in candidates) or "none"
+            stats["stranded"] = int(stranded())
             return result(
                 PlanStatus.APPROXIMATE,
                 f"stuck at {s:.2f} m of {guide.length:.2f} m; limbs off their footholds: {far}",
