@@ -7,6 +7,7 @@ kinematics helpers and conversions between Pinocchio configurations and named jo
 
 from planner.kinematics.ik import IkProblem, IkResult, resolve_active, solve_ik
 from planner.kinematics.keyframes import (
+    clearing_swing_trajectory,
     keyframe_times,
     minimum_jerk,
     swing_arc,
@@ -60,6 +61,7 @@ __all__ = [
     "borrowed_data",
     "bounded_dofs",
     "clamp_to_limits",
+    "clearing_swing_trajectory",
     "com_position",
     "configuration_from",
     "configuration_parts",

@@ -112,3 +112,54 @@ def swing_trajectory(
         return out
 
     return pose
+
+
+def clearing_swing_trajectory(
+    start: ArrayLike,
+    end: ArrayLike,
+    t_start: float,
+    t_end: float,
+    *,
+    rise: float,
+    descend: float,
+    normal_in_frame: ArrayLike = (0.0, 0.0, 1.0),
+    rise_share: float = 0.2,
+) -> Callable[[float], FloatArray]:
+    """Effector pose (4, 4) as a function of time along a box-shaped swing: up ``rise`` m
+    along the start's contact normal, across in a straight line to ``descend`` m above the
+    end along its normal, and down onto it. With tau the share of [t_start, t_end] gone by,
+    the rise runs over tau in [0, 2 r], the crossing over [r, 1 - r] and the descent over
+    [1 - 2 r], 1] (r = ``rise_share``, each leg a minimum-jerk profile: zero velocity and
+    acceleration at both ends, the corners rounded by the overlaps), so an effector next to
+    a wall or a ledge goes up before it moves over. Rotation interpolated along the geodesic
+    with the crossing. Times outside [t_start, t_end] give the end poses."""
+    if not t_end > t_start:
+        raise ValueError("need t_end > t_start")
+    if not (rise >= 0.0 and descend >= 0.0):
+        raise ValueError("rise and descend must be non-negative")
+    if not 0.0 < rise_share < 0.5:
+        raise ValueError("rise_share must be in (0, 0.5)")
+    a = np.asarray(start, dtype=np.float64)
+    b = np.asarray(end, dtype=np.float64)
+    p0, p3, n0, n3, _ = _arc_inputs(a, b, np.zeros(1), normal_in_frame)
+    top0, top3 = p0 + rise * n0, p3 + descend * n3
+    r0 = a[:3, :3]
+    delta = np.asarray(pin.log3(r0.T @ b[:3, :3]), dtype=np.float64)
+    duration = t_end - t_start
+    share = rise_share
+
+    def jerk(x: float) -> float:
+        x = min(max(x, 0.0), 1.0)
+        return x**3 * (10.0 - 15.0 * x + 6.0 * x * x)  # minimum_jerk, scalar
+
+    def pose(t: float) -> FloatArray:
+        tau = min(max((t - t_start) / duration, 0.0), 1.0)
+        across = jerk((tau - share) / (1.0 - 2.0 * share))
+        up = jerk(tau / (2.0 * share))
+        down = jerk((tau - 1.0 + 2.0 * share) / (2.0 * share))
+        out = np.eye(4)
+        out[:3, :3] = r0 @ pin.exp3(across * delta)
+        out[:3, 3] = (1.0 - across) * (p0 + up * (top0 - p0)) + across * (top3 + down * (p3 - top3))
+        return out
+
+    return pose

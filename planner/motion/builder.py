@@ -23,7 +23,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from planner.character import Character
-from planner.kinematics import borrowed_data, swing_trajectory
+from planner.kinematics import borrowed_data, clearing_swing_trajectory, swing_trajectory
 from planner.motion import tuning
 from planner.motion.checker import KeyframeCheck, KeyframeChecker
 from planner.motion.spec import MotionPhase, MotionSpec
@@ -127,7 +127,9 @@ class BuiltMotion:
     """Phases, COM segments and keyframes of a motion, with its report. ``end`` is the
     configuration (nq,) the motion ends in; ``swing_lifts`` the arc height (m) each phase's
     swing was tracked with (0 without a swing); ``checks`` and ``com_errors`` (m) what the
-    checker said of each keyframe (a later build may resume from this one's keyframes)."""
+    checker said of each keyframe (a later build may resume from this one's keyframes);
+    ``swing_clearings`` the top (m) of each phase's clearing path when its swing was tracked
+    along one (``CLEARING_HEIGHTS``), 0 otherwise."""
 
     phases: tuple[Phase, ...]
     com: tuple[ComSegment, ...]
@@ -137,6 +139,7 @@ class BuiltMotion:
     swing_lifts: tuple[float, ...] = ()
     checks: tuple[KeyframeCheck, ...] = ()
     com_errors: tuple[float, ...] = ()
+    swing_clearings: tuple[float, ...] = ()
 
 
 def keyframe_grid(t0: float, t1: float, rate: float) -> FloatArray:
@@ -160,7 +163,8 @@ def _slerp(a: FloatArray, b: FloatArray, u: float) -> FloatArray:
 
 class _Targets:
     """Per-time targets of a spec: the phase, its stance, the COM and the swing pose; the
-    swing arc of a phase may be raised (``lifts``, per phase index)."""
+    swing arc of a phase may be raised (``lifts``, per phase index) or replaced by a
+    clearing path (``clearings``: its top, m, per phase index)."""
 
     def __init__(self, character: Character, spec: MotionSpec) -> None:
         self.character = character
@@ -168,9 +172,10 @@ class _Targets:
         self.breaks = np.array([p.t1 for p in spec.phases])
         self._break_list = [float(p.t1) for p in spec.phases]
         self.lifts: dict[int, float] = {}
+        self.clearings: dict[int, float] = {}
         self.tucks: dict[int, tuple[float, float]] = {}
         self.unguarded: set[int] = set()
-        self._arcs: dict[tuple[int, float], Any] = {}
+        self._arcs: dict[tuple[int, float, float], Any] = {}
         self._coms: dict[float, FloatArray] = {}
         # per phase, its stance as (limb, placement (4, 4)) pairs, made once
         self._stances: dict[int, tuple[tuple[str, FloatArray], ...]] = {}
@@ -211,13 +216,17 @@ class _Targets:
         return min(k, len(self.spec.phases) - 1)
 
     def arc(self, k: int) -> Any:
-        """The swing path of phase k (t -> pose (4, 4)), or None without a swing."""
+        """The swing path of phase k (t -> pose (4, 4)), or None without a swing: its arc, or
+        its clearing path when ``clearings`` has one (:meth:`clearing_path`)."""
         phase = self.spec.phases[k]
         swing = phase.swing
         if swing is None or phase.t1 <= phase.t0:
             return None
+        clearing = self.clearings.get(k, 0.0)
+        if clearing > 0.0:
+            return self.clearing_path(k, clearing)
         lift = self.lifts.get(k, swing.lift)
-        key = (k, lift)
+        key = (k, lift, 0.0)
         if key not in self._arcs:
             normal = self.character.limb(swing.limb).normal
             # the arc lands a little before the phase ends: the effector, which lags its
@@ -229,6 +238,31 @@ class _Targets:
                 self.landing(phase),
                 lift=lift,
                 normal_in_frame=normal,
+            )
+        return self._arcs[key]
+
+    def clearing_path(self, k: int, top: float) -> Any:
+        """The box-shaped swing path of phase k (t -> pose (4, 4)): up, across and down, its
+        crossing ``top`` m above the higher of its two ends along each end's normal, landing
+        when :meth:`arc` does."""
+        phase = self.spec.phases[k]
+        swing = phase.swing
+        assert swing is not None
+        key = (k, 0.0, top)
+        if key not in self._arcs:
+            normal = np.asarray(self.character.limb(swing.limb).normal, dtype=np.float64)
+            normal = normal / np.linalg.norm(normal)
+            p0, p3 = swing.start[:3, 3], swing.end[:3, 3]
+            n0, n3 = swing.start[:3, :3] @ normal, swing.end[:3, :3] @ normal
+            self._arcs[key] = clearing_swing_trajectory(
+                swing.start,
+                swing.end,
+                phase.t0,
+                self.landing(phase),
+                rise=top + max(0.0, float((p3 - p0) @ n0)),
+                descend=top + max(0.0, float((p0 - p3) @ n3)),
+                normal_in_frame=normal,
+                rise_share=tuning.CLEARING_RISE_SHARE,
             )
         return self._arcs[key]
 
@@ -381,6 +415,46 @@ class _Segment:
         """Lower is better: colliding keyframes, then a missed landing."""
         missed = int(self.landing_error > tuning.LANDING_TOLERANCE)
         return sum(c.colliding for c in self.checks) + tuning.MISSED_LANDING_WEIGHT * missed, missed
+
+
+def _clearing_top(targets: _Targets, checker: KeyframeChecker, k: int) -> float:
+    """m, the lowest top of ``CLEARING_HEIGHTS`` whose clearing path for phase k
+    (:meth:`_Targets.clearing_path`) keeps the swinging effector's shapes
+    ``CLEARING_MARGIN`` off the scene at ``CLEARING_SAMPLES`` times (those within
+    ``CLEARING_END_ZONE`` of either end, where it touches its surfaces, not measured); the
+    highest when none does."""
+    phase = targets.spec.phases[k]
+    swing = phase.swing
+    assert swing is not None
+    character = targets.character
+    frame = character.model.frames[int(character.limb(swing.limb).frame_id)]
+    objects = character.motion_geometry.geometryObjects
+    # the effector's shapes in its frame (they ride the frame's joint: effector_geometries)
+    shapes = [
+        (objects[i].geometry, frame.placement.actInv(objects[i].placement))
+        for i in sorted(checker.effectors[swing.limb])
+        if int(objects[i].parentJoint) == int(frame.parentJoint)
+    ]
+    p0, p3 = swing.start[:3, 3], swing.end[:3, 3]
+    times = np.linspace(phase.t0, targets.landing(phase), tuning.CLEARING_SAMPLES)
+    for top in tuning.CLEARING_HEIGHTS:
+        path = targets.clearing_path(k, top)
+        clear = True
+        for t in times:
+            pose = np.asarray(path(float(t)), dtype=np.float64)
+            here = pose[:3, 3]
+            if min(np.linalg.norm(here - p0), np.linalg.norm(here - p3)) < tuning.CLEARING_END_ZONE:
+                continue
+            placed = pin.SE3(pose[:3, :3], here)
+            if any(
+                checker.distances.nearest(geometry, placed * local) < tuning.CLEARING_MARGIN
+                for geometry, local in shapes
+            ):
+                clear = False
+                break
+        if clear:
+            return top
+    return tuning.CLEARING_HEIGHTS[-1]
 
 
 def _swing_at_fault(segment: _Segment, shapes: frozenset[str]) -> bool:
@@ -580,6 +654,9 @@ def _build_motion(
         for k in range(min(first, len(earlier.swing_lifts))):
             if spec.phases[k].swing is not None:
                 targets.lifts[k] = earlier.swing_lifts[k]
+        for k in range(min(first, len(earlier.swing_clearings))):
+            if spec.phases[k].swing is not None and earlier.swing_clearings[k] > 0.0:
+                targets.clearings[k] = earlier.swing_clearings[k]
         tracker.fallbacks = earlier.report.qp_fallbacks
     if kept.keyframes:
         kept.q = np.array(kept.keyframes[-1].q, dtype=np.float64)
@@ -615,29 +692,41 @@ def _build_motion(
         k = targets.phase_index(times[0])
         swing = spec.phases[k].swing
         flight = spec.phases[k].flight
-        attempts = [(0.0, True)]
+        # (lift or tuck level, guarded, clearing path): a clearing path's top is found
+        # when it is tried (``_clearing_top``)
+        attempts = [(0.0, True, False)]
         if flight:
             # a colliding flight is tracked again with its limbs tucked further
-            attempts = [(float(n), True) for n in range(len(tuning.FLIGHT_TUCKS) + 1)]
+            attempts = [(float(n), True, False) for n in range(len(tuning.FLIGHT_TUCKS) + 1)]
         elif swing is not None:
             lifts = [swing.lift, *(x for x in tuning.SWING_LIFTS if x > swing.lift)]
-            # last resort: the highest arc with the swinging effector unguarded
-            attempts = [*((x, True) for x in lifts), (lifts[-1], False)]
+            # then a box-shaped path over what the arcs run into; last resort: the highest
+            # arc with the swinging effector unguarded
+            attempts = [
+                *((x, True, False) for x in lifts),
+                (lifts[-1], True, True),
+                (lifts[-1], False, False),
+            ]
         best: _Segment | None = None
         best_attempt = attempts[0]
-        for n, (lift, guarded) in enumerate(attempts):
+        best_top = 0.0
+        for n, (lift, guarded, clearing) in enumerate(attempts):
             if n and flight:
                 retried += 1
                 targets.tucks[k] = tuning.FLIGHT_TUCKS[n - 1]
             elif n:
                 retried += 1
                 targets.lifts[k] = lift
+                targets.clearings.pop(k, None)
+                if clearing:
+                    targets.clearings[k] = _clearing_top(targets, checker, k)
                 if not guarded:
                     targets.unguarded.add(k)
             tracker.reset()
             segment = _track_segment(tracker, checker, targets, q, times, previous, until)
             if best is None or segment.score < best.score:
-                best, best_attempt = segment, (lift, guarded)
+                best, best_attempt = segment, (lift, guarded, clearing)
+                best_top = targets.clearings.get(k, 0.0)
             if best.score[0] == 0 or segment.cut_short:
                 break
             if swing is not None and not _swing_at_fault(segment, limb_shapes[swing.limb]):
@@ -653,6 +742,10 @@ def _build_motion(
             targets.lifts[k] = best_attempt[0]
             if best_attempt[1]:
                 targets.unguarded.discard(k)
+            if best_attempt[2]:
+                targets.clearings[k] = best_top
+            else:
+                targets.clearings.pop(k, None)
         last_key = segments[-1].keyframes[-1] if segments and segments[-1].keyframes else None
         segments.append(best)
         q = best.q
@@ -700,6 +793,7 @@ def _build_motion(
         0.0 if p.swing is None else targets.lifts.get(k, p.swing.lift)
         for k, p in enumerate(spec.phases)
     )
+    swing_clearings = tuple(targets.clearings.get(k, 0.0) for k in range(len(spec.phases)))
     return BuiltMotion(
         phases,
         com_segments,
@@ -709,4 +803,5 @@ def _build_motion(
         swing_lifts,
         tuple(checks),
         tuple(com_errors),
+        swing_clearings,
     )

@@ -119,9 +119,9 @@ def planned(request: pytest.FixtureRequest) -> tuple[str, PlanResult[ContactPlan
 # still collides is not SOLVED). Measured on the seed of each scenario; SOLVED is accepted too.
 MOTION_SHORTFALL = frozenset(
     {
-        "hpp_darpa_hyq",  # solves at its seed; the next one: a stance foot slips 6 mm
-        "rubble_quadruped",  # solves clean at its seed; the next one: stance feet slip
-        # and a shin meets a block in trial builds until the work runs out
+        "rubble_quadruped",  # solves clean at its seed and at seed + 2; the next seed with
+        # its start 1 mm back solves, 1 mm on its work runs out at 61 of 99 phases (swings
+        # stepping up past ridges tracked again, slowed, until they land)
     }
 )
 
