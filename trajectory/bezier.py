@@ -159,6 +159,7 @@ class PiecewiseBezier:
 
     segments: tuple[BezierCurve, ...]
     _starts: tuple[float, ...] = field(init=False, repr=False, compare=False)
+    _breaks: FloatArray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         segs = tuple(self.segments)
@@ -168,7 +169,10 @@ class PiecewiseBezier:
             if abs(a.t1 - b.t0) > 1e-9 * max(1.0, abs(a.t1)):
                 raise ValueError("segments: time intervals must be contiguous")
         object.__setattr__(self, "segments", segs)
-        object.__setattr__(self, "_starts", tuple(float(b) for b in self.breaks))
+        breaks = np.array([segs[0].t0, *(s.t1 for s in segs)])
+        breaks.flags.writeable = False
+        object.__setattr__(self, "_breaks", breaks)
+        object.__setattr__(self, "_starts", tuple(float(b) for b in breaks))
 
     @property
     def t0(self) -> float:
@@ -182,8 +186,8 @@ class PiecewiseBezier:
 
     @property
     def breaks(self) -> FloatArray:
-        """(k + 1,) segment boundary times."""
-        return np.array([self.segments[0].t0, *(s.t1 for s in self.segments)])
+        """(k + 1,) segment boundary times (a copy)."""
+        return self._breaks.copy()
 
     def __call__(self, t: float | FloatArray) -> FloatArray:
         """Points: t scalar -> (d,), t (n,) -> (n, d); the later segment wins at a break."""
@@ -198,7 +202,9 @@ class PiecewiseBezier:
         tt = np.atleast_1d(np.asarray(t, dtype=np.float64))
         if np.any(tt < self.t0 - 1e-12) or np.any(tt > self.t1 + 1e-12):
             raise ValueError(f"t: out of range [{self.t0}, {self.t1}]")
-        idx = np.clip(np.searchsorted(self.breaks, tt, side="right") - 1, 0, len(self.segments) - 1)
+        idx = np.clip(
+            np.searchsorted(self._breaks, tt, side="right") - 1, 0, len(self.segments) - 1
+        )
         out = np.zeros((tt.shape[0], self.segments[0].dim))
         for i in np.unique(idx):
             mask = idx == i

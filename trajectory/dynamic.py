@@ -174,6 +174,8 @@ def dynamic_com(
     basis2 = bernstein(d - 2, u) @ _second_difference(d) * d * (d - 1)
 
     sample_times = [times[j] + u * (times[j + 1] - times[j]) for j in range(len(phases))]
+    all_times = np.concatenate(sample_times)
+    per_phase = [slice(j * u.size, (j + 1) * u.size) for j in range(len(phases))]
     targets: list[FloatArray] | None = None
     if reference is not None:
         if reference_times is None or len(reference_times) != len(phases) + 1:
@@ -213,8 +215,10 @@ def dynamic_com(
         if x is None:
             return result
         curve = _curve(layout, x, times, d)
-        acceleration = curve.derivative(2)
-        lin = [(curve(ts), acceleration(ts)) for ts in sample_times]
+        # every phase's samples in one evaluation of each curve (the same points as phase
+        # by phase: a sample on a break is the later segment's either way)
+        positions, accelerations = curve(all_times), curve.derivative(2)(all_times)
+        lin = [(positions[k], accelerations[k]) for k in per_phase]
         valid = all(
             equilibrium_margin(phase, c, a).feasible
             for phase, (cs, accs) in zip(phases, lin, strict=True)

@@ -437,6 +437,39 @@ def _margin(phase: ContactPhase, com: FloatArray, acc: FloatArray | None) -> Equ
     return _margin_primal(G, w, phase.mass)
 
 
+_DUAL_ROWS: dict[int, tuple[FloatArray, tuple[FloatArray, ...]]] = {}
+_DUAL_ROWS_KEPT = 512  # generator sets whose dual LP rows are kept (a plan's phases)
+
+
+def _dual_rows(G: FloatArray) -> tuple[FloatArray, ...]:
+    """The constant data of :func:`_margin_dual`'s LP for the generators ``G`` (m, 6): its
+    Hessian (6, 6) (a tiny proximal term), rows [G; sum of G's rows] (m + 1, 6), upper and
+    lower bounds (m + 1,) and the equality flags (m + 1,). Remembered per read-only ``G``
+    (a phase's generators, checked at every sample of a curve). Not to be modified: they
+    stay writable only because daqp's interface takes writable buffers (it reads them)."""
+    if G.flags.writeable:
+        return _make_dual_rows(G)
+    hit = _DUAL_ROWS.get(id(G))
+    if hit is not None and hit[0] is G:
+        return hit[1]
+    rows = _make_dual_rows(G)
+    if len(_DUAL_ROWS) >= _DUAL_ROWS_KEPT:
+        _DUAL_ROWS.clear()
+    _DUAL_ROWS[id(G)] = (G, rows)
+    return rows
+
+
+def _make_dual_rows(G: FloatArray) -> tuple[FloatArray, ...]:
+    m = G.shape[0]
+    hessian = np.eye(6) * 1e-9
+    A = np.vstack([G, G.sum(axis=0)])
+    upper = np.concatenate([np.full(m, _solvers.INF), [1.0]])
+    lower = np.concatenate([np.zeros(m), [1.0]])
+    eq = np.zeros(m + 1, dtype=bool)
+    eq[m] = True
+    return hessian, A, upper, lower, eq
+
+
 def _margin_dual(G: FloatArray, w: FloatArray, weight: float) -> EquilibriumMargin | None:
     """Dual of the robustness LP (6 variables): min w'y s.t. G'y >= 0, (G 1)'y = 1.
 
@@ -445,12 +478,8 @@ def _margin_dual(G: FloatArray, w: FloatArray, weight: float) -> EquilibriumMarg
     """
     m = G.shape[0]
     ws = w / weight
-    A = np.vstack([G, G.sum(axis=0)])
-    upper = np.concatenate([np.full(m, _solvers.INF), [1.0]])
-    lower = np.concatenate([np.zeros(m), [1.0]])
-    eq = np.zeros(m + 1, dtype=bool)
-    eq[m] = True
-    res = _solvers.solve(np.eye(6) * 1e-9, ws, A, upper, lower, eq, eps_prox=0.0)
+    hessian, A, upper, lower, eq = _dual_rows(G)
+    res = _solvers.solve(hessian, ws, A, upper, lower, eq, eps_prox=0.0)
     if not res.ok:
         return None
     lam = -res.dual

@@ -159,7 +159,14 @@ class SceneDistances:
         """Per target, the distance of ``geometry`` at ``placement`` (pin.SE3) and coal's
         result (witness points, normal from the target to the shape); the result is reused,
         read it before the next item."""
-        transform = coal.Transform3s(placement.rotation, placement.translation)
+        return self.each_at(geometry, placement.rotation, placement.translation)
+
+    def each_at(
+        self, geometry: Any, rotation: FloatArray, translation: FloatArray
+    ) -> Iterator[tuple[float, Any]]:
+        """:meth:`each` with the placement given as a rotation (3, 3) and a translation
+        (3,) (world frame; a :func:`shape_poses` row costs no pinocchio conversion)."""
+        transform = coal.Transform3s(rotation, translation)
         for target, target_tf in self.targets:
             self.result.clear()
             d = coal.distance(target, target_tf, geometry, transform, self.request, self.result)
@@ -214,6 +221,15 @@ class SceneDistances:
         self.measured_centres[i] = self.centres[i]
         self.measured_rotations[i] = self.rotations[i]
 
+    def remember_all(self, shapes: Sequence[int], distances: Sequence[float]) -> None:
+        """:meth:`remember` of each of ``shapes`` (distinct) at its distance, in one go."""
+        if not shapes:
+            return
+        index = np.asarray(shapes, dtype=np.int64)
+        self.measured[index] = distances
+        self.measured_centres[index] = self.centres[index]
+        self.measured_rotations[index] = self.rotations[index]
+
 
 class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type information
     """Body shapes kept out of the scene (a triangle BVH) and of static obstacles.
@@ -242,8 +258,9 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
         self.shapes = [
             (i, o.geometry, int(o.parentJoint)) for i, o in enumerate(geometry.geometryObjects)
         ]
-        # per shape: recent (step, scene point (3,), normal (3,), body point in joint frame)
-        self.memory: dict[int, list[tuple[int, FloatArray, FloatArray, FloatArray]]] = {}
+        # per shape: recent (step, [scene point (3,), normal (3,), body point in its joint's
+        # frame (3,)] as one row (9,))
+        self.memory: dict[int, list[tuple[int, FloatArray]]] = {}
         self.steps = 0
 
     def set_phase(self, skipped: frozenset[int], light: dict[int, float]) -> None:
@@ -285,14 +302,19 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
         self.steps += 1
         oldest = self.steps - tuning.WITNESS_MEMORY
         settled = self.distances.settled_at(poses, tuning.INFLUENCE_DISTANCE)
-        placements: list[Any] = []  # geometry_data.oMg copied out once, when first needed
-        # the remembered witnesses of every shape, in order: (joint, scene point, normal,
-        # body point in the joint frame, security distance)
-        witnesses: list[tuple[int, FloatArray, FloatArray, FloatArray, float]] = []
+        rotations_g, translations_g = poses
+        # the remembered witnesses of every shape, in order: their joints, security distances
+        # and (scene point, normal, body point in the joint frame) as one row (9,) each
+        joints_w: list[int] = []
+        securities_w: list[float] = []
+        table: list[FloatArray] = []
+        measured: list[int] = []
+        nearest_of: list[float] = []
         # only shapes near the scene or with witnesses to remember need a look
         active = set(np.flatnonzero(~settled).tolist())
         active.update(i for i, m in self.memory.items() if m)
         joint_placements: list[Any] = []  # data.oMi copied out once, when first needed
+        influence = tuning.INFLUENCE_DISTANCE
         for i in sorted(active - self.skipped):
             _, shape, joint = self.shapes[i]
             memory = [m for m in self.memory.get(i, ()) if m[0] > oldest]
@@ -304,36 +326,39 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
                     joint_placements = data.oMi.tolist()
                 frame = joint_placements[joint]
                 nearest = np.inf
-                if not placements:
-                    placements = geometry_data.oMg.tolist()
-                for d, result in self.distances.each(shape, placements[i]):
+                for d, result in self.distances.each_at(shape, rotations_g[i], translations_g[i]):
                     nearest = min(nearest, d)
-                    if d > tuning.INFLUENCE_DISTANCE:
+                    if d > influence:
                         continue
                     local = frame.actInv(np.array(result.getNearestPoint2()))
-                    scene_point = np.array(result.getNearestPoint1())
-                    memory.append((self.steps, scene_point, np.array(result.normal), local))
-                self.distances.remember(i, nearest)
-            security = self.light.get(i, tuning.SECURITY_DISTANCE)
-            witnesses.extend((joint, m[1], m[2], m[3], security) for m in memory)
+                    row = np.concatenate((result.getNearestPoint1(), result.normal, local))
+                    memory.append((self.steps, row))
+                measured.append(i)
+                nearest_of.append(nearest)
+            if memory:
+                security = self.light.get(i, tuning.SECURITY_DISTANCE)
+                joints_w += [joint] * len(memory)
+                securities_w += [security] * len(memory)
+                table += [m[1] for m in memory]
+        self.distances.remember_all(measured, nearest_of)
         self.rows = 0
-        if not witnesses:
+        if not table:
             return None
-        joints = np.array([w[0] for w in witnesses])
-        scene_points = np.array([w[1] for w in witnesses])
-        normals = np.array([w[2] for w in witnesses])
-        locals_ = np.array([w[3] for w in witnesses])
-        securities = np.array([w[4] for w in witnesses])
+        joints = np.array(joints_w)
+        stacked = np.array(table)
+        scene_points = stacked[:, :3]
+        normals = stacked[:, 3:6]
+        locals_ = stacked[:, 6:]
+        securities = np.array(securities_w)
         if not joint_placements:
             joint_placements = data.oMi.tolist()
         # each joint's placement read once (a pinocchio attribute costs a conversion)
-        joint_list = joints.tolist()
-        frames = {j: joint_placements[j].homogeneous for j in set(joint_list)}
-        placed = np.array([frames[j] for j in joint_list])
+        frames = {j: joint_placements[j].homogeneous for j in set(joints_w)}
+        placed = np.array([frames[j] for j in joints_w])
         rotations = np.ascontiguousarray(placed[:, :3, :3])
         points = np.einsum("rab,rb->ra", rotations, locals_) + placed[:, :3, 3]
         distances = np.einsum("ra,ra->r", normals, points - scene_points)
-        keep = distances <= tuning.INFLUENCE_DISTANCE
+        keep = distances <= influence
         if not keep.any():
             return None
         speeds = jacobians.along(joints[keep], points[keep], normals[keep])

@@ -82,3 +82,22 @@ def test_out_of_range_raises() -> None:
         BezierCurve(np.zeros((2, 2)), 1.0, 1.0)
     with pytest.raises(ValueError, match="curves"):
         concatenate([curve, BezierCurve(np.ones((2, 2)), 1.0, 2.0)])
+
+
+def test_piecewise_times_at_once_equal_group_by_group() -> None:
+    """The dynamic COM evaluates every phase's samples in one call: the same points, to the
+    bit, as one call per phase (a sample on a break is the later segment's either way)."""
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        n = int(rng.integers(1, 60))
+        times = np.concatenate([[0.0], np.cumsum(rng.uniform(0.1, 2.0, n))])
+        curve = PiecewiseBezier(
+            tuple(BezierCurve(rng.normal(size=(8, 3)), times[j], times[j + 1]) for j in range(n))
+        )
+        u = np.linspace(0.0, 1.0, 12)
+        groups = [times[j] + u * (times[j + 1] - times[j]) for j in range(n)]
+        for c in (curve, curve.derivative(2)):
+            at_once = c(np.concatenate(groups))
+            for j, ts in enumerate(groups):
+                assert np.array_equal(at_once[12 * j : 12 * (j + 1)], c(ts))
+        assert np.array_equal(curve.breaks, times)
