@@ -1,0 +1,64 @@
+"""The walker's release guard (``SequenceParams.release_guard``): with it, no step or advance
+leaves a leg behind the body where it could be released before and cannot be any more."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+from planner.character import get_character
+from planner.contact.context import make_context
+from planner.contact.generation import break_contact
+from planner.contact.planner import Endpoint, plan_contact_motion
+from planner.contact.sequence import SequenceParams, contact_sequence
+from planner.offline import load_offline_data
+from planner.result import PlanStatus
+from tests.paths import gecko_cache_dir
+from tests.scenarios.plans.test_plans import scenario_scene
+
+
+def test_a_guarded_walk_never_strands_a_leg_behind_the_body() -> None:
+    scene = scenario_scene({"scene": "flat"})
+    character = get_character("quadruped")
+    data = load_offline_data(character, gecko_cache_dir())
+    plan = plan_contact_motion(
+        scene,
+        character,
+        data,
+        Endpoint(stand_at=np.zeros(3)),
+        Endpoint(stand_at=np.array([1.0, 0.0, 0.0])),
+        rng=np.random.default_rng(4),
+        time_budget_s=10.0,
+    )
+    assert plan.status is PlanStatus.SOLVED, plan.message
+    states = plan.value.states
+    ctx = make_context(scene, character, data)
+    guarded = contact_sequence(
+        ctx,
+        states[0],
+        plan.value.root_path,
+        states[-1],
+        rng=np.random.default_rng(4),
+        until=lambda: False,
+        params=SequenceParams(release_guard=True),
+    )
+    assert guarded.status is PlanStatus.SOLVED, guarded.message
+    assert not guarded.stats.get("stranded")
+    walked = guarded.value
+    for before, after in itertools.pairwise(walked):
+        assert after.differs_by_one(before)
+    # the guard compares the states a step goes between (a break and the make after it)
+    settled = [s for s in walked if len(s.contacts) == len(walked[0].contacts)]
+    assert len(settled) > 4
+    for before, after in itertools.pairwise(settled):
+        root_x = float(before.q[0])  # the guide runs along +x
+        for contact in before.contacts:
+            kept = after.contact(contact.limb)
+            if kept is None or not np.allclose(kept.position, contact.position):
+                continue  # the leg that stepped
+            if contact.position[0] >= root_x:
+                continue  # a leg ahead of the body
+            if break_contact(ctx, before, contact.limb).ok:
+                released = break_contact(ctx, after, contact.limb)
+                assert released.ok, f"{contact.limb} stranded behind: {released.message}"
