@@ -20,6 +20,7 @@ from tests.scenarios.plans.test_plans import scenario_scene
 
 def test_a_guarded_walk_never_strands_a_leg_behind_the_body() -> None:
     scene = scenario_scene({"scene": "flat"})
+    assert scene is not None
     character = get_character("quadruped")
     data = load_offline_data(character, gecko_cache_dir())
     plan = plan_contact_motion(
@@ -31,7 +32,7 @@ def test_a_guarded_walk_never_strands_a_leg_behind_the_body() -> None:
         rng=np.random.default_rng(4),
         time_budget_s=10.0,
     )
-    assert plan.status is PlanStatus.SOLVED, plan.message
+    assert plan.status is PlanStatus.SOLVED and plan.value is not None, plan.message
     states = plan.value.states
     ctx = make_context(scene, character, data)
     guarded = contact_sequence(
@@ -46,6 +47,7 @@ def test_a_guarded_walk_never_strands_a_leg_behind_the_body() -> None:
     assert guarded.status is PlanStatus.SOLVED, guarded.message
     assert not guarded.stats.get("stranded")
     walked = guarded.value
+    assert walked is not None
     for before, after in itertools.pairwise(walked):
         assert after.differs_by_one(before)
     # the guard compares the states a step goes between (a break and the make after it)
