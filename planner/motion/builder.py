@@ -184,8 +184,8 @@ class _Targets:
     def substeps(self, k: int) -> int:
         """Control steps per keyframe period in phase k: ``FAST_SUBSTEPS`` in a flight and in
         a fast-COM phase whose COM curve goes faster than ``FAST_COM_SPEED`` somewhere
-        (a push, a landing), ``SUBSTEPS`` elsewhere (a jump's crouch and stand-up shifts
-        too: their COM moves at walking pace)."""
+        (a push, a landing), the spec's ``substeps`` or ``SUBSTEPS`` elsewhere (a jump's
+        crouch and stand-up shifts too: their COM moves at walking pace)."""
         known = self._substeps.get(k)
         if known is not None:
             return known
@@ -196,7 +196,7 @@ class _Targets:
             points = np.array([self.com(float(t)) for t in times])
             speeds = np.linalg.norm(np.diff(points, axis=0), axis=1) / np.diff(times)
             fast = bool(speeds.max() > tuning.FAST_COM_SPEED)
-        count = tuning.FAST_SUBSTEPS if fast else tuning.SUBSTEPS
+        count = tuning.FAST_SUBSTEPS if fast else (self.spec.substeps or tuning.SUBSTEPS)
         self._substeps[k] = count
         return count
 
@@ -518,8 +518,11 @@ def _track_segment(
             substeps = targets.substeps(targets.phase_index(t))
             dt = (t - previous) / substeps
             share = tuning.SUBSTEPS / substeps
+            before = q
             for s in range(1, substeps + 1):
                 q = tracker.step(q, targets.at(previous + s * dt), dt, share)
+            if tuning.HOLD_STANCE:
+                q = tracker.hold_stance(q, targets.at(t).stance, before, t - previous)
         previous = t
         phase = spec.phases[targets.phase_index(t)]
         check = checker.check(q, phase.stance, lifting)

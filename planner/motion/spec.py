@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.character import Character
+from planner.motion import tuning
 
 if TYPE_CHECKING:  # annotations only: planner.contact imports planner.motion
     from planner.contact.state import LimbContact
@@ -108,19 +109,23 @@ class MotionSpec:
     """What to animate: from ``q_start`` (nq,) through ``phases`` (contiguous, in time
     order), the COM following ``com`` over [phases[0].t0, phases[-1].t1], keyframes at
     ``rate`` per second; with ``q_end`` (nq,), the last keyframe is exactly ``q_end`` (the
-    last ``END_BLEND_S`` seconds are blended into it)."""
+    last ``END_BLEND_S`` seconds are blended into it). ``substeps`` : control steps per
+    keyframe period outside fast phases (None: ``SUBSTEPS``)."""
 
     q_start: FloatArray
     phases: tuple[MotionPhase, ...]
     com: PiecewiseBezier
     rate: float = 30.0
     q_end: FloatArray | None = None
+    substeps: int | None = None
 
     def __post_init__(self) -> None:
         if not self.phases:
             raise ValueError("phases: at least one phase is needed")
         if not self.rate > 0:
             raise ValueError("rate must be positive")
+        if self.substeps is not None and not 1 <= self.substeps <= tuning.FAST_SUBSTEPS:
+            raise ValueError(f"substeps must be in [1, {tuning.FAST_SUBSTEPS}]")
         for a, b in zip(self.phases, self.phases[1:], strict=False):
             if abs(a.t1 - b.t0) > 1e-9 or b.t1 < b.t0:
                 raise ValueError("phases must be contiguous and in time order")

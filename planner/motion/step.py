@@ -159,7 +159,14 @@ def step_spec(
         )
         for k in range(2)
     )
-    spec = MotionSpec(np.asarray(before.q, dtype=np.float64), phases, curve, rate, q_end=posture)
+    spec = MotionSpec(
+        np.asarray(before.q, dtype=np.float64),
+        phases,
+        curve,
+        rate,
+        q_end=posture,
+        substeps=tuning.STEP_SUBSTEPS,
+    )
     return spec, how
 
 

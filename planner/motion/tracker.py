@@ -345,6 +345,7 @@ class WholeBodyTracker:
         self._bounded = terms.bounded
         self._joints = terms.joints
         self._lower, self._upper = terms.lower, terms.upper
+        self._joint_speeds = speed_limits(model)[terms.root_nv :]
         self._lower_limit, self._upper_limit = terms.lower_limit, terms.upper_limit
         self._unbounded = np.full(model.nv, 1e30)  # the bound of an unbounded dq
         self._diagonal_terms = terms.diagonal_terms
@@ -434,6 +435,76 @@ class WholeBodyTracker:
             q = np.asarray(pin.integrate(self.model, q, velocity * dt), dtype=np.float64)
             return self._onto_com(q, targets.com) if targets.exact_com else q
         return np.array(q, dtype=np.float64)
+
+    def hold_stance(
+        self,
+        q: FloatArray,
+        stance: Sequence[tuple[str, FloatArray]],
+        reference: FloatArray | None = None,
+        dt: float = 0.0,
+    ) -> FloatArray:
+        """``q`` (nq,) moved by the smallest steps (damped least norm over the tangent space,
+        ``HOLD_STANCE_ITERATIONS`` Gauss-Newton steps at most) that put the ``stance``
+        effectors (limb, pose (4, 4)) back on their contacts: the second-order drift that a
+        control step's linearised contact rows leave (millimetres) is taken out once per
+        keyframe, without the QP. The joints stay within their position limits and, given the
+        previous keyframe ``reference`` (nq,) ``dt`` s before, within their speed limits from
+        it; a joint at a bound does not take part, and a step that does not lower the squared
+        contact error is not taken."""
+        if not stance:
+            return q
+        model, data = self.model, self.data
+        lower, upper = self._lower, self._upper
+        if reference is not None:
+            reach = dt * self._joint_speeds
+            lower = np.maximum(lower, reference[self._joints] - reach)
+            upper = np.minimum(upper, reference[self._joints] + reach)
+        kept = out = np.array(q, dtype=np.float64)
+        best = math.inf
+        for iteration in range(tuning.HOLD_STANCE_ITERATIONS + 1):
+            pin.computeJointJacobians(model, data, out)
+            pin.updateFramePlacements(model, data)
+            rows, errors = [], []
+            for limb, pose in stance:
+                jac, err = self._frame_error(self._frame_ids[limb], self._held_target(pose))
+                keep = self._stance_weights[limb][1]
+                rows.append(jac[keep])
+                errors.append(err[keep])
+            err = np.concatenate(errors)
+            squared = float(err @ err)
+            if squared >= best:
+                break  # the last step did not help: ``kept`` stays
+            best, kept = squared, out
+            if squared < tuning.HOLD_STANCE_TOLERANCE**2:
+                break
+            if iteration < tuning.HOLD_STANCE_ITERATIONS:
+                out = self._hold_step(out, np.concatenate(rows), err, lower, upper)
+        self._stamp += 1
+        return kept
+
+    def _hold_step(
+        self, q: FloatArray, jac: FloatArray, err: FloatArray, lower: FloatArray, upper: FloatArray
+    ) -> FloatArray:
+        """``q`` (nq,) after the damped least-norm step ``dq`` with ``jac @ dq = -err``
+        (``jac`` (m, nv), ``err`` (m,)), joints that the step would push past their bounds
+        ``lower``, ``upper`` (rad, one per joint) held where they are (the step found again
+        without them), and clipped to them if that is not enough."""
+        model = self.model
+        free = np.ones(model.nv, dtype=bool)
+        for _ in range(2):
+            active = jac[:, free]
+            gram = active @ active.T
+            gram[np.diag_indices_from(gram)] += tuning.HOLD_STANCE_DAMPING
+            step = np.zeros(model.nv)
+            step[free] = -(active.T @ np.linalg.solve(gram, err))
+            out = np.asarray(pin.integrate(model, q, step), dtype=np.float64)
+            joints = out[self._joints]
+            over = (joints < lower) | (joints > upper)
+            if not over.any():
+                return out
+            free[self._root_nv :] &= ~over
+        out[self._joints] = np.minimum(np.maximum(out[self._joints], lower), upper)
+        return out
 
     def objective(self, q: FloatArray, targets: StepTargets, share: float = 1.0) -> StepQP:
         """The kinematics at ``q`` (nq,) (joint placements and Jacobians, frames, COM and

@@ -11,6 +11,29 @@ from __future__ import annotations
 SUBSTEPS = 2
 """Control steps per keyframe period: at 30 keyframes per second the QP runs at 60 Hz."""
 
+STEP_SUBSTEPS = 1
+"""Control steps per keyframe period in a Twister step (a one-step move, ``MotionSpec.substeps``)
+outside its fast phases: one, the stance then set back on its contacts (``HOLD_STANCE``), which
+halves a step's CPU; plans keep ``SUBSTEPS`` (at one, stairs and rubble walks lose their
+landings)."""
+
+HOLD_STANCE = True
+"""After a keyframe's control steps, set its stance effectors back on their contacts with a few
+damped Gauss-Newton steps (``WholeBodyTracker.hold_stance``): the QP holds contacts with a
+dominant weight, not exactly, and leaves a few millimetres of drift."""
+
+HOLD_STANCE_DAMPING = 1e-6
+"""Damping (m^2, rad^2) of the least-norm step that sets a keyframe's stance effectors back on
+their contacts after its control steps (``WholeBodyTracker.hold_stance``)."""
+
+HOLD_STANCE_ITERATIONS = 3
+"""Gauss-Newton steps at most of that setting back (a swing that has just landed may be a few
+millimetres and degrees off its contact)."""
+
+HOLD_STANCE_TOLERANCE = 1e-5
+"""m or rad: a stance whose contact errors (all components, stacked) are this small in norm is
+left as is."""
+
 FAST_SUBSTEPS = 6
 """Control steps per keyframe period in a phase whose COM moves fast (a jump's stances and
 flights: 180 Hz at 30 keyframes per second): a step's joint motion is small enough that the
