@@ -576,8 +576,11 @@ def sequence_motion(
     Where a phase cannot be played cleanly even slowed and stopping at rest, ``replan``
     (when given) is asked for other contact changes from there on (2PAC 7.2's last
     resort): the dynamic curve is found again from the first changed phase, joined C2 to
-    the curve before, whose keyframes are kept. The report lists the re-plans
-    (``contact_replans``) and the answer's ``states`` are the ones animated.
+    the curve before, whose keyframes are kept. When no dynamic curve comes clean, 2PAC's
+    curve through the states first given is built whole; where that is not clean either
+    and contact changes were re-planned, 2PAC's curve through the re-planned states is built
+    too and kept when it is clean (else the re-plans are undone). The report lists the
+    re-plans (``contact_replans``) and the answer's ``states`` are the ones animated.
     """
     if not states:
         raise ValueError("states: at least one contact state is needed")
@@ -797,14 +800,38 @@ def sequence_motion(
         dynamic_refused = trials[-1]
     if built is None:
         # 2PAC's curve through the states first given (contact changes re-planned for a
-        # dynamic curve that did not come clean are undone)
+        # dynamic curve that did not come clean are undone, unless those states do not
+        # play cleanly on it and the re-planned ones do)
+        after_replans = (states, com_trajectory, attractor_report)
         states, com_trajectory, attractor_report = original
         n, phases_tr = len(states), [contact_phase(character, s) for s in states]
         curve = com_trajectory.curve
         times = np.asarray(com_trajectory.phase_times, dtype=np.float64)
         methods = com_trajectory.phase_methods
         built = build(curve, times)
-        if last is not None and last.built.report.phases_animated > built.report.phases_animated:
+        kept_replans = False
+        if replans and not built.report.complete and not built.report.cut_short:
+            # the states first given are not played cleanly even on 2PAC's curve, and a
+            # phase the trials could not play was planned again: 2PAC's curve through the
+            # re-planned states, kept if it is clean
+            states, com_trajectory, attractor_report = after_replans
+            curve = com_trajectory.curve
+            times = np.asarray(com_trajectory.phase_times, dtype=np.float64)
+            other = build(curve, times)
+            kept_replans = other.report.complete
+            if kept_replans:
+                built, methods = other, com_trajectory.phase_methods
+                n, phases_tr = len(states), [contact_phase(character, s) for s in states]
+            else:
+                states, com_trajectory, attractor_report = original
+                curve = com_trajectory.curve
+                times = np.asarray(com_trajectory.phase_times, dtype=np.float64)
+        if kept_replans:
+            replans.append(
+                "no clean dynamic curve, and the states first given are not played cleanly "
+                "on 2PAC's curve: the re-planned changes are kept, on 2PAC's curve"
+            )
+        elif last is not None and last.built.report.phases_animated > built.report.phases_animated:
             # the work ran out before 2PAC's curve got as far as the last trial: that trial
             # (clean up to the phase it was abandoned at) is the answer
             built, factors = last.built, last.factors

@@ -3,6 +3,7 @@ its curve, keyframes evenly spaced and checked, the same answer twice."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from functools import cache
 
 import numpy as np
@@ -177,3 +178,93 @@ def test_phases_remembered_per_state_equal_fresh_ones() -> None:
                 assert np.array_equal(kin.A, fresh[i][1].A)
                 assert np.array_equal(kin.b, fresh[i][1].b)
     assert contact_phase(character, states[0]) is contact_phase(character, states[0])
+
+
+def _fake_build(original: tuple[ContactState, ...], bad: int, replanned_clean: bool):  # type: ignore[no-untyped-def]
+    """A stand-in for ``build_motion`` (no tracking): a build through the ``original`` states
+    cannot play phase ``bad``, a build through re-planned states phase ``bad + 1`` (the
+    trials never come clean), and a build of 2PAC's whole curve through re-planned states is
+    clean when ``replanned_clean``. Returns the stand-in and the specs it was given."""
+    from planner.motion.builder import BuiltMotion, MotionReport
+    from planner.motion.types import Keyframe, Phase
+
+    given: list[object] = []
+
+    def build(character, scene_bvh, spec, *, abandon_unclean=False, **_):  # type: ignore[no-untyped-def]
+        given.append(spec)
+        first = spec.phases[bad].stance is original[bad].contacts
+        fails = bad if first else bad + 1
+        total = len(spec.phases)
+        clean = not abandon_unclean and not first and replanned_clean
+        report = MotionReport(
+            phases_animated=fails if abandon_unclean else total,
+            phases_total=total,
+            cut_short=False,
+            colliding_keyframes=0,
+            worst_scene_depth=0.0,
+            worst_shape=None,
+            worst_self_depth=0.0,
+            max_hold_error=0.0 if clean else 0.1,
+            com_error_max=0.0,
+            com_error_p99=0.0,
+            qp_fallbacks=0,
+            abandoned=abandon_unclean,
+            abandoned_phase=fails if abandon_unclean else None,
+            abandoned_because="a keyframe collides or a contact slips" if abandon_unclean else None,
+        )
+        end = spec.phases[fails - 1].t1 if abandon_unclean else spec.phases[-1].t1
+        keys = tuple(
+            Keyframe(t=float(t), q=np.asarray(spec.q_start), contacts=())
+            for t in keyframe_grid(spec.phases[0].t0, end, spec.rate)
+        )
+        phases = tuple(Phase(t0=p.t0, t1=p.t1, contacts=p.stance) for p in spec.phases)
+        return BuiltMotion(phases, (), keys, report, np.asarray(spec.q_start))
+
+    return build, given
+
+
+@pytest.mark.parametrize("replanned_clean", [True, False])
+def test_a_fallback_keeps_the_replanned_changes_only_when_they_play_clean(
+    monkeypatch: pytest.MonkeyPatch, replanned_clean: bool
+) -> None:
+    """When no dynamic curve comes clean and 2PAC's curve through the states first given
+    does not either, 2PAC's curve through the contact changes the trials re-planned is built
+    too, and its states are the answer when it is clean; otherwise the re-plans are undone."""
+    from planner.motion import sequence
+
+    ctx, states = _hexapod_steps()
+    bad = 4
+    # re-planned: the same states from the one before the failing change on, as new objects
+    other = (
+        *states[:3],
+        *(ContactState(s.q, tuple(replace(c) for c in s.contacts)) for s in states[3:]),
+    )
+    calls: list[int] = []
+
+    def replan(planned, phase, reserve):  # type: ignore[no-untyped-def]
+        calls.append(phase)
+        return other if len(calls) == 1 else None
+
+    build, given = _fake_build(states, bad, replanned_clean)
+    monkeypatch.setattr(sequence, "build_motion", build)
+    motion = sequence_motion(
+        ctx.character, ctx.data, ctx.scene.collision.bvh, states, replan=replan
+    )
+    assert calls and calls[0] == bad
+    replans = motion.report["contact_replans"]
+    assert isinstance(replans, list)
+    assert replans[0].startswith(f"phase {bad} could not be played")
+    assert motion.report["com_method"] in ("2pac", "2pac+rest_to_rest")
+    # the last two builds: 2PAC's whole curve through the first states, then the re-planned
+    whole = [s for s in given if not s.phases[0].rigid_stance]
+    assert len(whole) == 2
+    assert whole[0].phases[bad].stance is states[bad].contacts
+    assert whole[1].phases[bad].stance is other[bad].contacts
+    if replanned_clean:
+        assert motion.states == other
+        assert motion.quality.complete
+        assert replans[-1].endswith("the re-planned changes are kept, on 2PAC's curve")
+    else:
+        assert motion.states == states
+        assert not motion.quality.complete
+        assert replans[-1].endswith("all undone")

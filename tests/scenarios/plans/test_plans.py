@@ -292,6 +292,29 @@ def test_a_neighbouring_seed_and_a_nudged_start_solve_too(planned) -> None:  # t
 KNIFE_EDGE: dict[str, str] = {}
 
 
+# Seeds further from a scenario's own at which its plan once fell short (issue 12: no
+# scenario on a knife edge), held to the invariants of the scenario's own seed.
+FURTHER_SEEDS = (
+    # phase 56's hand hold is out of the tracked body's reach even stopping at rest: the
+    # contact changes re-planned there are kept, on 2PAC's curve (the trial builds ran out)
+    ("climbing_wall_humanoid", 4),
+)
+
+
+@pytest.mark.parametrize(("name", "offset"), FURTHER_SEEDS)
+def test_further_seeds_hold_the_invariants_too(name: str, offset: int) -> None:
+    planned = (name, *_plan(name, seed_offset=offset))
+    for check in (
+        test_solved_and_every_state_valid,
+        test_goal_contacts_reached,
+        test_optional_limbs_used,
+        test_keyframes_hold_contacts_and_com_stays_in_kinematic_polytopes,
+        test_keyframes_pass_the_independent_audit,
+        test_a_dynamic_com_slows_only_from_where_the_body_could_not_follow,
+    ):
+        check(planned)
+
+
 def test_same_seed_same_plan(planned) -> None:  # type: ignore[no-untyped-def]
     name, result, *_ = planned
     again = _plan(name)[0]
