@@ -521,7 +521,7 @@ def _track_segment(
             before = q
             for s in range(1, substeps + 1):
                 q = tracker.step(q, targets.at(previous + s * dt), dt, share)
-            if tuning.HOLD_STANCE:
+            if spec.hold_stance:
                 q = tracker.hold_stance(q, targets.at(t).stance, before, t - previous)
         previous = t
         phase = spec.phases[targets.phase_index(t)]

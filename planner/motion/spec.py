@@ -110,7 +110,8 @@ class MotionSpec:
     order), the COM following ``com`` over [phases[0].t0, phases[-1].t1], keyframes at
     ``rate`` per second; with ``q_end`` (nq,), the last keyframe is exactly ``q_end`` (the
     last ``END_BLEND_S`` seconds are blended into it). ``substeps`` : control steps per
-    keyframe period outside fast phases (None: ``SUBSTEPS``)."""
+    keyframe period outside fast phases (None: ``SUBSTEPS``). ``hold_stance`` : after its
+    control steps, each keyframe's stance effectors are set back on their contacts."""
 
     q_start: FloatArray
     phases: tuple[MotionPhase, ...]
@@ -118,6 +119,7 @@ class MotionSpec:
     rate: float = 30.0
     q_end: FloatArray | None = None
     substeps: int | None = None
+    hold_stance: bool = False
 
     def __post_init__(self) -> None:
         if not self.phases:

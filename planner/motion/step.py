@@ -166,6 +166,7 @@ def step_spec(
         rate,
         q_end=posture,
         substeps=tuning.STEP_SUBSTEPS,
+        hold_stance=True,
     )
     return spec, how
 
