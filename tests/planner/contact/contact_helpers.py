@@ -72,6 +72,21 @@ def cage(
     return walls
 
 
+@cache
+def flat_walk(character_id: str) -> PlanResult[ContactPlan]:
+    """The character's plan 1 m straight ahead (+x) on the built-in flat scene, seed 4."""
+    character, data = character_and_data(character_id)
+    return plan_contact_motion(
+        scene("flat"),
+        character,
+        data,
+        Endpoint(stand_at=np.zeros(3)),
+        Endpoint(stand_at=np.array([1.0, 0.0, 0.0])),
+        rng=np.random.default_rng(4),
+        time_budget_s=10.0,
+    )
+
+
 def plan_into_the_pen(seed: int, time_budget_s: float = 1.0) -> PlanResult[ContactPlan]:
     """The humanoid's plan from outside the closed ``pen`` scene to a goal inside its walls,
     a goal nothing reaches."""

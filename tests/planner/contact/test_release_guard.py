@@ -7,34 +7,19 @@ import itertools
 
 import numpy as np
 
-from planner.character import get_character
 from planner.contact.context import make_context
 from planner.contact.generation import break_contact
-from planner.contact.planner import Endpoint, plan_contact_motion
 from planner.contact.sequence import SequenceParams, contact_sequence
-from planner.offline import load_offline_data
 from planner.result import PlanStatus
-from tests.paths import gecko_cache_dir
-from tests.scenarios.plans.test_plans import scenario_scene
+from tests.planner.contact.contact_helpers import character_and_data, flat_walk, scene
 
 
 def test_a_guarded_walk_never_strands_a_leg_behind_the_body() -> None:
-    scene = scenario_scene({"scene": "flat"})
-    assert scene is not None
-    character = get_character("quadruped")
-    data = load_offline_data(character, gecko_cache_dir())
-    plan = plan_contact_motion(
-        scene,
-        character,
-        data,
-        Endpoint(stand_at=np.zeros(3)),
-        Endpoint(stand_at=np.array([1.0, 0.0, 0.0])),
-        rng=np.random.default_rng(4),
-        time_budget_s=10.0,
-    )
+    character, data = character_and_data("quadruped")
+    plan = flat_walk("quadruped")
     assert plan.status is PlanStatus.SOLVED and plan.value is not None, plan.message
     states = plan.value.states
-    ctx = make_context(scene, character, data)
+    ctx = make_context(scene("flat"), character, data)
     guarded = contact_sequence(
         ctx,
         states[0],

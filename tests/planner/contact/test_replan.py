@@ -9,12 +9,11 @@ import numpy as np
 
 from planner.contact.context import make_context
 from planner.contact.generation import AVOID_RADIUS, break_contact, create_contact
-from planner.contact.planner import Endpoint, plan_contact_motion
 from planner.contact.sequence import contact_sequence
 from planner.contact.state import ContactState
 from planner.result import PlanStatus
+from tests.planner.contact.contact_helpers import character_and_data, flat_walk, scene
 from tests.planner.contact.test_generation import _flat_state
-from tests.scenarios.plans.test_plans import scenario_scene
 
 
 def test_a_contact_is_not_made_near_an_avoided_point() -> None:
@@ -37,25 +36,10 @@ def test_a_contact_is_not_made_near_an_avoided_point() -> None:
 
 
 def _walk_plan():  # type: ignore[no-untyped-def]
-    from planner.character import get_character
-    from planner.offline import load_offline_data
-    from tests.paths import gecko_cache_dir
-
-    spec = {"scene": "flat"}
-    scene = scenario_scene(spec)
-    character = get_character("humanoid")
-    data = load_offline_data(character, gecko_cache_dir())
-    result = plan_contact_motion(
-        scene,
-        character,
-        data,
-        Endpoint(stand_at=np.zeros(3)),
-        Endpoint(stand_at=np.array([1.0, 0.0, 0.0])),
-        rng=np.random.default_rng(4),
-        time_budget_s=10.0,
-    )
+    character, data = character_and_data("humanoid")
+    result = flat_walk("humanoid")
     assert result.status is PlanStatus.SOLVED, result.message
-    return scene, character, data, result.value
+    return scene("flat"), character, data, result.value
 
 
 def _made(a: ContactState, b: ContactState) -> str | None:
