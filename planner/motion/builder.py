@@ -338,6 +338,14 @@ class _Targets:
             out.append((limb.limb, pose))
         return tuple(out)
 
+    def stance(self, k: int) -> tuple[tuple[str, FloatArray], ...]:
+        """Phase ``k``'s stance as (limb, placement (4, 4)) pairs (:meth:`at`'s), made once."""
+        stance = self._stances.get(k)
+        if stance is None:
+            stance = tuple((c.limb, np.asarray(c.placement)) for c in self.spec.phases[k].stance)
+            self._stances[k] = stance
+        return stance
+
     def at(self, t: float) -> StepTargets:
         k = self.phase_index(t)
         phase: MotionPhase = self.spec.phases[k]
@@ -350,10 +358,7 @@ class _Targets:
             landing = self.landing(phase)
             if t > landing:
                 settle = (t - landing) / max(phase.t1 - landing, 1e-9)
-        stance = self._stances.get(k)
-        if stance is None:
-            stance = tuple((c.limb, np.asarray(c.placement)) for c in phase.stance)
-            self._stances[k] = stance
+        stance = self.stance(k)
         if phase.flight is None and not phase.fast_com:
             return StepTargets(
                 stance,
@@ -522,7 +527,8 @@ def _track_segment(
             for s in range(1, substeps + 1):
                 q = tracker.step(q, targets.at(previous + s * dt), dt, share)
             if tuning.HOLD_STANCE:
-                q = tracker.hold_stance(q, targets.at(t).stance, before, t - previous)
+                stance = targets.stance(targets.phase_index(t))
+                q = tracker.hold_stance(q, stance, before, t - previous)
         previous = t
         phase = spec.phases[targets.phase_index(t)]
         check = checker.check(q, phase.stance, lifting)

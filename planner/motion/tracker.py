@@ -461,15 +461,18 @@ class WholeBodyTracker:
             upper = np.minimum(upper, reference[self._joints] + reach)
         kept = out = np.array(q, dtype=np.float64)
         best = math.inf
+        held = [
+            (self._frame_ids[limb], self._held_target(pose), self._stance_weights[limb][1])
+            for limb, pose in stance
+        ]
+        oMf = data.oMf
         for iteration in range(tuning.HOLD_STANCE_ITERATIONS + 1):
-            pin.computeJointJacobians(model, data, out)
-            pin.updateFramePlacements(model, data)
-            rows, errors = [], []
-            for limb, pose in stance:
-                jac, err = self._frame_error(self._frame_ids[limb], self._held_target(pose))
-                keep = self._stance_weights[limb][1]
-                rows.append(jac[keep])
-                errors.append(err[keep])
+            # the placements first: the Jacobians only when a step is taken (the frame
+            # placements are the same ones computeJointJacobians then recomputes)
+            pin.framesForwardKinematics(model, data, out)
+            errors = [
+                pin.log6(oMf[frame].actInv(target)).vector[keep] for frame, target, keep in held
+            ]
             err = np.concatenate(errors)
             squared = float(err @ err)
             if squared >= best:
@@ -478,6 +481,8 @@ class WholeBodyTracker:
             if squared < tuning.HOLD_STANCE_TOLERANCE**2:
                 break
             if iteration < tuning.HOLD_STANCE_ITERATIONS:
+                pin.computeJointJacobians(model, data, out)
+                rows = [self._frame_jacobian(frame, target)[keep] for frame, target, keep in held]
                 out = self._hold_step(out, np.concatenate(rows), err, lower, upper)
         self._stamp += 1
         return kept
@@ -494,7 +499,7 @@ class WholeBodyTracker:
         for _ in range(2):
             active = jac[:, free]
             gram = active @ active.T
-            gram[np.diag_indices_from(gram)] += tuning.HOLD_STANCE_DAMPING
+            gram.flat[:: len(gram) + 1] += tuning.HOLD_STANCE_DAMPING  # the diagonal
             step = np.zeros(model.nv)
             step[free] = -(active.T @ np.linalg.solve(gram, err))
             out = np.asarray(pin.integrate(model, q, step), dtype=np.float64)
@@ -608,6 +613,12 @@ class WholeBodyTracker:
         local = pin.getFrameJacobian(self.model, self.data, frame, pin.LOCAL)
         jac = -pin.Jlog6(target.actInv(here)) @ local
         return jac, error
+
+    def _frame_jacobian(self, frame: int, target: Any) -> FloatArray:
+        """The Jacobian (6, nv) of :meth:`_frame_error`, without its error."""
+        here = self.data.oMf[frame]
+        local = pin.getFrameJacobian(self.model, self.data, frame, pin.LOCAL)
+        return np.asarray(-pin.Jlog6(target.actInv(here)) @ local, dtype=np.float64)
 
     def inequalities(
         self, dt: float, dampers: bool, root_bounded: bool
