@@ -75,6 +75,7 @@ class KeyframeChecker:
         self.geometry_data = pin.GeometryData(self.geometry)
         for request in self.geometry_data.distanceRequests:
             request.enable_signed_distance = True
+        self.tracker = tracker
         if tracker is None:
             self.data = self.model.createData()
             self.distances = SceneDistances(scene_bvh, obstacles, self.geometry)
@@ -104,6 +105,8 @@ class KeyframeChecker:
         pin.framesForwardKinematics(model, data, q)
         pin.updateGeometryPlacements(model, data, self.geometry, self.geometry_data)
         poses = shape_poses(self.geometry_data)
+        if self.tracker is not None:
+            self.tracker.offer_poses(q, poses)  # its next control step starts from q
         skipped: set[int] = set()
         hold = 0.0
         for contact in stance:

@@ -154,6 +154,7 @@ class SceneDistances:
         self.measured_rotations = np.zeros((len(shapes), 3, 3))
         self.rotations = np.zeros((len(shapes), 3, 3))
         self.centres = np.zeros((len(shapes), 3))
+        self._placed: Poses | None = None  # the poses ``centres`` were computed at
 
     def each(self, geometry: Any, placement: Any) -> Iterator[tuple[float, Any]]:
         """Per target, the distance of ``geometry`` at ``placement`` (pin.SE3) and coal's
@@ -206,8 +207,12 @@ class SceneDistances:
 
     def settled_at(self, poses: Poses, threshold: float) -> NDArray[np.bool_]:
         """:meth:`settled` with the placements given as :func:`shape_poses` arrays."""
-        self.rotations, translations = poses
-        self.centres = np.einsum("gab,gb->ga", self.rotations, self.local_centres) + translations
+        if poses is not self._placed:  # the same arrays (a checker's, then a step's): known
+            self.rotations, translations = poses
+            self.centres = (
+                np.einsum("gab,gb->ga", self.rotations, self.local_centres) + translations
+            )
+            self._placed = poses
         moved = self.centres - self.measured_centres
         shift = np.sqrt(np.einsum("ga,ga->g", moved, moved))
         turned = self.rotations - self.measured_rotations
@@ -420,6 +425,8 @@ class PairBroadPhase:
         self.middles, self.local_points, self.spheres = shapes[4:]
         self.odometer = np.zeros(len(self.spheres))
         self.last: tuple[FloatArray, FloatArray] | None = None
+        # the poses of the last query and the capsule points placed there (G, 3, 3)
+        self._placed: tuple[Poses, FloatArray] | None = None
         # per pair: distance known (-inf: none), both odometers when it was known
         n = len(self.pair_array)
         self.known = np.full(n, -np.inf)
@@ -437,17 +444,22 @@ class PairBroadPhase:
         """:meth:`near` with the placements given as :func:`shape_poses` arrays."""
         if len(self.pair_array) == 0:
             return []
-        rot, trans = poses
-        world = np.matmul(self.local_points, rot.transpose(0, 2, 1))  # R p for each point
-        world += trans[:, None, :]
-        centres = world[:, 0]
-        if self.last is not None:
-            last_rot, last_centres = self.last
-            turned = rot - last_rot
-            moved = centres - last_centres
-            self.odometer += np.sqrt(np.einsum("ga,ga->g", moved, moved))
-            self.odometer += np.sqrt(np.einsum("gab,gab->g", turned, turned)) * self.spheres
-        self.last = (rot, centres)
+        if self._placed is not None and self._placed[0] is poses:
+            # the same arrays as the last query (a checker's, then a step's): nothing moved
+            world = self._placed[1]
+        else:
+            rot, trans = poses
+            world = np.matmul(self.local_points, rot.transpose(0, 2, 1))  # R p for each point
+            world += trans[:, None, :]
+            centres = world[:, 0]
+            if self.last is not None:
+                last_rot, last_centres = self.last
+                turned = rot - last_rot
+                moved = centres - last_centres
+                self.odometer += np.sqrt(np.einsum("ga,ga->g", moved, moved))
+                self.odometer += np.sqrt(np.einsum("gab,gab->g", turned, turned)) * self.spheres
+            self.last = (rot, centres)
+            self._placed = (poses, world)
         run = self.odometer[self.pair_array] - self.known_odometers
         open_ = np.flatnonzero(self.known - (run[:, 0] + run[:, 1]) <= margin)
         if len(open_) == 0:

@@ -356,6 +356,8 @@ class WholeBodyTracker:
         self._poses: Poses = (np.zeros((0, 3, 3)), np.zeros((0, 3)))
         self._masks = support_masks(model)
         self._jacobians = PointJacobians(model, self.data, self._masks)
+        # shape placements computed elsewhere at a configuration (:meth:`offer_poses`)
+        self._offered: tuple[FloatArray, Poses] | None = None
 
     def trunk_rotation(self, posture: FloatArray, level: bool = True) -> FloatArray:
         """(3, 3) trunk orientation aimed at from a planned configuration (nq,): with
@@ -661,14 +663,25 @@ class WholeBodyTracker:
         lower[config] = np.maximum(lower[config], reach)
         return lower, upper
 
+    def offer_poses(self, q: FloatArray, poses: Poses) -> None:
+        """The :func:`shape_poses` ``poses`` of the motion geometry at ``q`` (nq,), computed
+        by the caller (the keyframe checker, where the next control step starts): a step
+        from exactly ``q`` uses them instead of computing them again (the same arrays, so
+        that the distance bounds see placements they already know)."""
+        self._offered = (np.array(q, dtype=np.float64), poses)
+
     def _damper_rows(self) -> list[tuple[FloatArray, FloatArray]]:
         """The scene then self-collision damper rows (G, h) at the kinematics of the last
-        :meth:`objective` (the shape placements computed once per step)."""
+        :meth:`objective` (the shape placements computed once per step, or offered)."""
         if self._placed != self._stamp:
             pin.updateGeometryPlacements(
                 self.model, self.data, self.character.motion_geometry, self.geometry_data
             )
-            self._poses = shape_poses(self.geometry_data)
+            offered = self._offered
+            if offered is not None and np.array_equal(offered[0], self.q):
+                self._poses = offered[1]
+            else:
+                self._poses = shape_poses(self.geometry_data)
             self._jacobians = PointJacobians(self.model, self.data, self._masks)
             self._placed = self._stamp
         out = []
