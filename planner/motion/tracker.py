@@ -51,6 +51,7 @@ from planner.motion.clearance import (
     SceneClearance,
     SelfClearance,
     shape_poses,
+    signed_geometry_data,
     support_masks,
 )
 
@@ -302,7 +303,9 @@ class WholeBodyTracker:
     """One character in one scene; :meth:`step` moves a configuration one control step.
 
     ``obstacles`` are (coal geometry, coal.Transform3s) pairs the body avoids besides the
-    scene (other characters). Not thread-safe: one per thread.
+    scene (other characters). ``data`` (pin.Data) and ``geometry_data``
+    (pin.GeometryData of the motion geometry, distance requests signed), when given, are the
+    tracker's alone for its life. Not thread-safe: one per thread.
     """
 
     def __init__(
@@ -311,6 +314,7 @@ class WholeBodyTracker:
         scene_bvh: Any,
         obstacles: Sequence[tuple[Any, Any]] = (),
         data: Any = None,
+        geometry_data: Any = None,
     ) -> None:
         self.character = character
         model = character.model
@@ -327,9 +331,13 @@ class WholeBodyTracker:
         self._settle_weights = terms.settle_weights
         self._rigid_keep = terms.rigid_keep
         self._trunk_weights, self._trunk_keep = terms.trunk_weights, terms.trunk_keep
-        self.geometry_data = pin.GeometryData(character.motion_geometry)
-        for request in self.geometry_data.distanceRequests:
-            request.enable_signed_distance = True
+        # pin.GeometryData of the motion geometry, distance requests signed: lent by the
+        # caller for the tracker's life, or its own
+        self.geometry_data = (
+            signed_geometry_data(character.motion_geometry)
+            if geometry_data is None
+            else geometry_data
+        )
         self.scene = SceneClearance(model, character.motion_geometry, scene_bvh, obstacles)
         self.self_clearance = SelfClearance(model, character.motion_geometry)
         self._config = terms.config
