@@ -15,6 +15,7 @@ from planner.kinematics.keyframes import (
 )
 from planner.kinematics.model import (
     borrowed_data,
+    borrowed_geometry_data,
     bounded_dofs,
     clamp_to_limits,
     com_position,
@@ -59,6 +60,7 @@ __all__ = [
     "TargetTask",
     "Task",
     "borrowed_data",
+    "borrowed_geometry_data",
     "bounded_dofs",
     "clamp_to_limits",
     "clearing_swing_trajectory",

@@ -12,6 +12,7 @@ import weakref
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -173,7 +174,22 @@ def scratch_data(model: pin.Model) -> pin.Data:
 
 
 _POOL = threading.local()
-_POOL_KEPT = 4  # idle pin.Data kept per model and thread
+_POOL_KEPT = 4  # idle pin.Data (pin.GeometryData) kept per model (geometry model) and thread
+
+
+def _idle(owner: Any, pool: str) -> list[Any]:
+    """This thread's idle objects of ``owner`` (a model) in the pool named ``pool``."""
+    pools: dict[int, tuple[weakref.ref[Any], list[Any]]] | None = getattr(_POOL, pool, None)
+    if pools is None:
+        pools = {}
+        setattr(_POOL, pool, pools)
+    entry = pools.get(id(owner))
+    if entry is None or entry[0]() is not owner:
+        for key in [k for k, (ref, _) in pools.items() if ref() is None]:
+            del pools[key]
+        entry = (weakref.ref(owner), [])
+        pools[id(owner)] = entry
+    return entry[1]
 
 
 @contextmanager
@@ -182,25 +198,34 @@ def borrowed_data(model: pin.Model) -> Iterator[pin.Data]:
     idle ones and given back at the end of the block (creating one costs ~1 ms, a Twister
     step needs two). Like :func:`scratch_data`, its contents are whatever the last user
     left: every user computes the kinematics it reads."""
-    pools: dict[int, tuple[weakref.ref[pin.Model], list[pin.Data]]] | None = getattr(
-        _POOL, "pools", None
-    )
-    if pools is None:
-        pools = {}
-        _POOL.pools = pools
-    entry = pools.get(id(model))
-    if entry is None or entry[0]() is not model:
-        for key in [k for k, (ref, _) in pools.items() if ref() is None]:
-            del pools[key]
-        entry = (weakref.ref(model), [])
-        pools[id(model)] = entry
-    idle = entry[1]
+    idle = _idle(model, "data")
     data = idle.pop() if idle else model.createData()
     try:
         yield data
     finally:
         if len(idle) < _POOL_KEPT:
             idle.append(data)
+
+
+@contextmanager
+def borrowed_geometry_data(geometry: pin.GeometryModel) -> Iterator[pin.GeometryData]:
+    """A ``pin.GeometryData`` for ``geometry`` with signed distance requests, this block's
+    alone, like :func:`borrowed_data` (creating one costs 0.2 to 0.7 ms, a Twister step's
+    motion needs two). Its placements and results are whatever the last user left: every
+    user updates the placements it reads, and a distance query does not depend on the ones
+    before it (the requests' default GJK guess, no cached one)."""
+    idle = _idle(geometry, "geometry_data")
+    if idle:
+        geometry_data = idle.pop()
+    else:
+        geometry_data = pin.GeometryData(geometry)
+        for request in geometry_data.distanceRequests:
+            request.enable_signed_distance = True
+    try:
+        yield geometry_data
+    finally:
+        if len(idle) < _POOL_KEPT:
+            idle.append(geometry_data)
 
 
 def _support_of_joint(model: pin.Model, layout: _Layout, joint: int) -> IntArray:

@@ -23,7 +23,12 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from planner.character import Character
-from planner.kinematics import borrowed_data, clearing_swing_trajectory, swing_trajectory
+from planner.kinematics import (
+    borrowed_data,
+    borrowed_geometry_data,
+    clearing_swing_trajectory,
+    swing_trajectory,
+)
 from planner.motion import tuning
 from planner.motion.checker import KeyframeCheck, KeyframeChecker
 from planner.motion.spec import MotionPhase, MotionSpec
@@ -338,6 +343,14 @@ class _Targets:
             out.append((limb.limb, pose))
         return tuple(out)
 
+    def stance(self, k: int) -> tuple[tuple[str, FloatArray], ...]:
+        """Phase ``k``'s stance as (limb, placement (4, 4)) pairs (:meth:`at`'s), made once."""
+        stance = self._stances.get(k)
+        if stance is None:
+            stance = tuple((c.limb, np.asarray(c.placement)) for c in self.spec.phases[k].stance)
+            self._stances[k] = stance
+        return stance
+
     def at(self, t: float) -> StepTargets:
         k = self.phase_index(t)
         phase: MotionPhase = self.spec.phases[k]
@@ -350,10 +363,7 @@ class _Targets:
             landing = self.landing(phase)
             if t > landing:
                 settle = (t - landing) / max(phase.t1 - landing, 1e-9)
-        stance = self._stances.get(k)
-        if stance is None:
-            stance = tuple((c.limb, np.asarray(c.placement)) for c in phase.stance)
-            self._stances[k] = stance
+        stance = self.stance(k)
         if phase.flight is None and not phase.fast_com:
             return StepTargets(
                 stance,
@@ -522,7 +532,8 @@ def _track_segment(
             for s in range(1, substeps + 1):
                 q = tracker.step(q, targets.at(previous + s * dt), dt, share)
             if spec.hold_stance:
-                q = tracker.hold_stance(q, targets.at(t).stance, before, t - previous)
+                stance = targets.stance(targets.phase_index(t))
+                q = tracker.hold_stance(q, stance, before, t - previous)
         previous = t
         phase = spec.phases[targets.phase_index(t)]
         check = checker.check(q, phase.stance, lifting)
@@ -615,7 +626,12 @@ def build_motion(
     p must be the ones it was built with) and tracking goes on from the last of them, the
     rest of the keyframes spaced evenly from there; its QP fallbacks are counted in (at
     most)."""
-    with borrowed_data(character.model) as data:
+    geometry = character.motion_geometry
+    with (
+        borrowed_data(character.model) as data,
+        borrowed_geometry_data(geometry) as tracked,
+        borrowed_geometry_data(geometry) as checked,
+    ):
         return _build_motion(
             character,
             scene_bvh,
@@ -625,6 +641,7 @@ def build_motion(
             abandon_unclean=abandon_unclean,
             resume=resume,
             data=data,
+            geometry_data=(tracked, checked),
         )
 
 
@@ -638,10 +655,13 @@ def _build_motion(
     abandon_unclean: bool = False,
     resume: tuple[BuiltMotion, int] | None = None,
     data: Any = None,
+    geometry_data: tuple[Any, Any] = (None, None),
 ) -> BuiltMotion:
-    """:func:`build_motion` with its tracker's kinematics in ``data`` (a pin.Data)."""
-    tracker = WholeBodyTracker(character, scene_bvh, obstacles, data=data)
-    checker = KeyframeChecker(character, scene_bvh, obstacles, tracker)
+    """:func:`build_motion` with its tracker's kinematics in ``data`` (a pin.Data) and its
+    tracker's and checker's shape placements and distances in ``geometry_data`` (two
+    pin.GeometryData of the motion geometry, distance requests signed; made when None)."""
+    tracker = WholeBodyTracker(character, scene_bvh, obstacles, data, geometry_data[0])
+    checker = KeyframeChecker(character, scene_bvh, obstacles, tracker, geometry_data[1])
     targets = _Targets(character, spec)
     kept = _Segment([], [], [], np.array(spec.q_start, dtype=np.float64), 0.0)
     if resume is not None:

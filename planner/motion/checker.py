@@ -18,7 +18,12 @@ from numpy.typing import NDArray
 
 from planner.character import Character
 from planner.motion import tuning
-from planner.motion.clearance import PairBroadPhase, SceneDistances, shape_poses
+from planner.motion.clearance import (
+    PairBroadPhase,
+    SceneDistances,
+    shape_poses,
+    signed_geometry_data,
+)
 from planner.motion.tracker import WholeBodyTracker, effector_geometries
 
 if TYPE_CHECKING:
@@ -64,6 +69,7 @@ class KeyframeChecker:
         scene_bvh: Any,
         obstacles: Sequence[tuple[Any, Any]] = (),
         tracker: WholeBodyTracker | None = None,
+        geometry_data: Any = None,
     ) -> None:
         self.character = character
         self.model = character.model
@@ -72,9 +78,12 @@ class KeyframeChecker:
         # buffers (each step recomputes them) and its distance bounds (exact lower bounds,
         # whoever measured them) are shared; not its pair distance buffers (coal starts
         # from their last results: sharing them changes the tracker's witnesses slightly)
-        self.geometry_data = pin.GeometryData(self.geometry)
-        for request in self.geometry_data.distanceRequests:
-            request.enable_signed_distance = True
+        # ``geometry_data`` (distance requests signed), lent by the caller for the checker's
+        # life, or its own
+        self.geometry_data = (
+            signed_geometry_data(self.geometry) if geometry_data is None else geometry_data
+        )
+        self.tracker = tracker
         if tracker is None:
             self.data = self.model.createData()
             self.distances = SceneDistances(scene_bvh, obstacles, self.geometry)
@@ -104,6 +113,8 @@ class KeyframeChecker:
         pin.framesForwardKinematics(model, data, q)
         pin.updateGeometryPlacements(model, data, self.geometry, self.geometry_data)
         poses = shape_poses(self.geometry_data)
+        if self.tracker is not None:
+            self.tracker.offer_poses(q, poses)  # its next control step starts from q
         skipped: set[int] = set()
         hold = 0.0
         for contact in stance:

@@ -57,6 +57,53 @@ def shape_poses(geometry_data: Any) -> Poses:
 
 
 _MASKS: dict[int, tuple[Any, NDArray[np.bool_]]] = {}
+_BOUNDS: dict[int, tuple[Any, tuple[FloatArray, FloatArray]]] = {}
+_PAIR_LISTS: dict[int, tuple[Any, tuple[list[tuple[int, int]], list[int]]]] = {}
+_MEMO_SIZE = 64  # geometry models remembered by each memo below (characters in a process)
+
+
+def signed_geometry_data(geometry: Any) -> Any:
+    """A pin.GeometryData of ``geometry`` whose distance requests are signed."""
+    geometry_data = pin.GeometryData(geometry)
+    for request in geometry_data.distanceRequests:
+        request.enable_signed_distance = True
+    return geometry_data
+
+
+def _shape_bounds(geometry: Any) -> tuple[FloatArray, FloatArray]:
+    """Per shape of a pin.GeometryModel its bounding sphere: centre (G, 3) in the shape's
+    frame and radius (G,) m, from its local AABB; computed once per geometry model
+    (read-only)."""
+    hit = _BOUNDS.get(id(geometry))
+    if hit is not None and hit[0] is geometry:
+        return hit[1]
+    shapes = [o.geometry for o in geometry.geometryObjects]
+    for shape in shapes:
+        shape.computeLocalAABB()
+    centres = np.array([s.aabb_center for s in shapes], dtype=np.float64).reshape(-1, 3)
+    radii = np.array([float(s.aabb_radius) for s in shapes], dtype=np.float64)
+    centres.flags.writeable = False
+    radii.flags.writeable = False
+    if len(_BOUNDS) >= _MEMO_SIZE:
+        _BOUNDS.clear()
+    _BOUNDS[id(geometry)] = (geometry, (centres, radii))
+    return centres, radii
+
+
+def _pair_lists(geometry: Any) -> tuple[list[tuple[int, int]], list[int]]:
+    """The declared collision pairs of a pin.GeometryModel as (first, second) shape
+    indices, and each shape's parent joint; computed once per geometry model (do not
+    modify)."""
+    hit = _PAIR_LISTS.get(id(geometry))
+    if hit is not None and hit[0] is geometry:
+        return hit[1]
+    pairs = [(int(p.first), int(p.second)) for p in geometry.collisionPairs]
+    joints = [int(o.parentJoint) for o in geometry.geometryObjects]
+    if len(_PAIR_LISTS) >= _MEMO_SIZE:
+        _PAIR_LISTS.clear()
+    _PAIR_LISTS[id(geometry)] = (geometry, (pairs, joints))
+    return pairs, joints
+
 
 # e_ijk: (a x b)_i = e_ijk a_j b_k
 _LEVI_CIVITA = np.zeros((3, 3, 3))
@@ -142,18 +189,19 @@ class SceneDistances:
         self.request = coal.DistanceRequest()
         self.request.enable_signed_distance = True
         self.result = coal.DistanceResult()
-        shapes = [] if geometry is None else [o.geometry for o in geometry.geometryObjects]
-        for shape in shapes:
-            shape.computeLocalAABB()
         # per shape: bounding sphere (centre in the shape's frame, radius); the distance last
         # measured (-inf: never) and the world centre and rotation it was measured at
-        self.local_centres = np.array([s.aabb_center for s in shapes]).reshape(-1, 3)
-        self.radii = np.array([float(s.aabb_radius) for s in shapes])
-        self.measured = np.full(len(shapes), -np.inf)
-        self.measured_centres = np.zeros((len(shapes), 3))
-        self.measured_rotations = np.zeros((len(shapes), 3, 3))
-        self.rotations = np.zeros((len(shapes), 3, 3))
-        self.centres = np.zeros((len(shapes), 3))
+        if geometry is None:
+            self.local_centres, self.radii = np.zeros((0, 3)), np.zeros(0)
+        else:
+            self.local_centres, self.radii = _shape_bounds(geometry)
+        count = len(self.radii)
+        self.measured = np.full(count, -np.inf)
+        self.measured_centres = np.zeros((count, 3))
+        self.measured_rotations = np.zeros((count, 3, 3))
+        self.rotations = np.zeros((count, 3, 3))
+        self.centres = np.zeros((count, 3))
+        self._placed: Poses | None = None  # the poses ``centres`` were computed at
 
     def each(self, geometry: Any, placement: Any) -> Iterator[tuple[float, Any]]:
         """Per target, the distance of ``geometry`` at ``placement`` (pin.SE3) and coal's
@@ -206,8 +254,12 @@ class SceneDistances:
 
     def settled_at(self, poses: Poses, threshold: float) -> NDArray[np.bool_]:
         """:meth:`settled` with the placements given as :func:`shape_poses` arrays."""
-        self.rotations, translations = poses
-        self.centres = np.einsum("gab,gb->ga", self.rotations, self.local_centres) + translations
+        if poses is not self._placed:  # the same arrays (a checker's, then a step's): known
+            self.rotations, translations = poses
+            self.centres = (
+                np.einsum("gab,gb->ga", self.rotations, self.local_centres) + translations
+            )
+            self._placed = poses
         moved = self.centres - self.measured_centres
         shift = np.sqrt(np.einsum("ga,ga->g", moved, moved))
         turned = self.rotations - self.measured_rotations
@@ -249,7 +301,7 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
     ) -> None:
         self.model = model
         self.geometry = geometry
-        self.geometry_data = pin.GeometryData(geometry)
+        self._geometry_data: Any = None  # made when first needed (the tracker lends its own)
         self.distances = SceneDistances(scene_bvh, obstacles, geometry)
         self.skipped: frozenset[int] = frozenset()
         self.light: dict[int, float] = {}
@@ -262,6 +314,13 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
         # frame (3,)] as one row (9,))
         self.memory: dict[int, list[tuple[int, FloatArray]]] = {}
         self.steps = 0
+
+    @property
+    def geometry_data(self) -> Any:
+        """This limit's own pin.GeometryData (for :meth:`depths` and pink's interface)."""
+        if self._geometry_data is None:
+            self._geometry_data = pin.GeometryData(self.geometry)
+        return self._geometry_data
 
     def set_phase(self, skipped: frozenset[int], light: dict[int, float]) -> None:
         """Shapes (geometry indices) not checked, and the security distance (m) of those
@@ -420,6 +479,8 @@ class PairBroadPhase:
         self.middles, self.local_points, self.spheres = shapes[4:]
         self.odometer = np.zeros(len(self.spheres))
         self.last: tuple[FloatArray, FloatArray] | None = None
+        # the poses of the last query and the capsule points placed there (G, 3, 3)
+        self._placed: tuple[Poses, FloatArray] | None = None
         # per pair: distance known (-inf: none), both odometers when it was known
         n = len(self.pair_array)
         self.known = np.full(n, -np.inf)
@@ -437,17 +498,22 @@ class PairBroadPhase:
         """:meth:`near` with the placements given as :func:`shape_poses` arrays."""
         if len(self.pair_array) == 0:
             return []
-        rot, trans = poses
-        world = np.matmul(self.local_points, rot.transpose(0, 2, 1))  # R p for each point
-        world += trans[:, None, :]
-        centres = world[:, 0]
-        if self.last is not None:
-            last_rot, last_centres = self.last
-            turned = rot - last_rot
-            moved = centres - last_centres
-            self.odometer += np.sqrt(np.einsum("ga,ga->g", moved, moved))
-            self.odometer += np.sqrt(np.einsum("gab,gab->g", turned, turned)) * self.spheres
-        self.last = (rot, centres)
+        if self._placed is not None and self._placed[0] is poses:
+            # the same arrays as the last query (a checker's, then a step's): nothing moved
+            world = self._placed[1]
+        else:
+            rot, trans = poses
+            world = np.matmul(self.local_points, rot.transpose(0, 2, 1))  # R p for each point
+            world += trans[:, None, :]
+            centres = world[:, 0]
+            if self.last is not None:
+                last_rot, last_centres = self.last
+                turned = rot - last_rot
+                moved = centres - last_centres
+                self.odometer += np.sqrt(np.einsum("ga,ga->g", moved, moved))
+                self.odometer += np.sqrt(np.einsum("gab,gab->g", turned, turned)) * self.spheres
+            self.last = (rot, centres)
+            self._placed = (poses, world)
         run = self.odometer[self.pair_array] - self.known_odometers
         open_ = np.flatnonzero(self.known - (run[:, 0] + run[:, 1]) <= margin)
         if len(open_) == 0:
@@ -489,14 +555,18 @@ class SelfClearance(Limit):  # type: ignore[misc]
     def __init__(self, model: Any, geometry: Any) -> None:
         self.model = model
         self.geometry = geometry
-        self.geometry_data = pin.GeometryData(geometry)
-        for request in self.geometry_data.distanceRequests:
-            request.enable_signed_distance = True
-        self.pairs = [(int(p.first), int(p.second)) for p in geometry.collisionPairs]
-        self.joints = [int(o.parentJoint) for o in geometry.geometryObjects]
+        self._geometry_data: Any = None  # made when first needed (the tracker lends its own)
+        self.pairs, self.joints = _pair_lists(geometry)
         self.broad = PairBroadPhase(geometry)
         self.rows = 0
         self.masks = support_masks(model)
+
+    @property
+    def geometry_data(self) -> Any:
+        """This limit's own pin.GeometryData, distance requests signed (pink's interface)."""
+        if self._geometry_data is None:
+            self._geometry_data = signed_geometry_data(self.geometry)
+        return self._geometry_data
 
     def compute_qp_inequalities(
         self, configuration: Any, dt: float

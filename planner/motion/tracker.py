@@ -51,6 +51,7 @@ from planner.motion.clearance import (
     SceneClearance,
     SelfClearance,
     shape_poses,
+    signed_geometry_data,
     support_masks,
 )
 
@@ -302,7 +303,9 @@ class WholeBodyTracker:
     """One character in one scene; :meth:`step` moves a configuration one control step.
 
     ``obstacles`` are (coal geometry, coal.Transform3s) pairs the body avoids besides the
-    scene (other characters). Not thread-safe: one per thread.
+    scene (other characters). ``data`` (pin.Data) and ``geometry_data``
+    (pin.GeometryData of the motion geometry, distance requests signed), when given, are the
+    tracker's alone for its life. Not thread-safe: one per thread.
     """
 
     def __init__(
@@ -311,6 +314,7 @@ class WholeBodyTracker:
         scene_bvh: Any,
         obstacles: Sequence[tuple[Any, Any]] = (),
         data: Any = None,
+        geometry_data: Any = None,
     ) -> None:
         self.character = character
         model = character.model
@@ -327,9 +331,13 @@ class WholeBodyTracker:
         self._settle_weights = terms.settle_weights
         self._rigid_keep = terms.rigid_keep
         self._trunk_weights, self._trunk_keep = terms.trunk_weights, terms.trunk_keep
-        self.geometry_data = pin.GeometryData(character.motion_geometry)
-        for request in self.geometry_data.distanceRequests:
-            request.enable_signed_distance = True
+        # pin.GeometryData of the motion geometry, distance requests signed: lent by the
+        # caller for the tracker's life, or its own
+        self.geometry_data = (
+            signed_geometry_data(character.motion_geometry)
+            if geometry_data is None
+            else geometry_data
+        )
         self.scene = SceneClearance(model, character.motion_geometry, scene_bvh, obstacles)
         self.self_clearance = SelfClearance(model, character.motion_geometry)
         self._config = terms.config
@@ -356,6 +364,8 @@ class WholeBodyTracker:
         self._poses: Poses = (np.zeros((0, 3, 3)), np.zeros((0, 3)))
         self._masks = support_masks(model)
         self._jacobians = PointJacobians(model, self.data, self._masks)
+        # shape placements computed elsewhere at a configuration (:meth:`offer_poses`)
+        self._offered: tuple[FloatArray, Poses] | None = None
 
     def trunk_rotation(self, posture: FloatArray, level: bool = True) -> FloatArray:
         """(3, 3) trunk orientation aimed at from a planned configuration (nq,): with
@@ -461,15 +471,18 @@ class WholeBodyTracker:
             upper = np.minimum(upper, reference[self._joints] + reach)
         kept = out = np.array(q, dtype=np.float64)
         best = math.inf
+        held = [
+            (self._frame_ids[limb], self._held_target(pose), self._stance_weights[limb][1])
+            for limb, pose in stance
+        ]
+        oMf = data.oMf
         for iteration in range(tuning.HOLD_STANCE_ITERATIONS + 1):
-            pin.computeJointJacobians(model, data, out)
-            pin.updateFramePlacements(model, data)
-            rows, errors = [], []
-            for limb, pose in stance:
-                jac, err = self._frame_error(self._frame_ids[limb], self._held_target(pose))
-                keep = self._stance_weights[limb][1]
-                rows.append(jac[keep])
-                errors.append(err[keep])
+            # the placements first: the Jacobians only when a step is taken (the frame
+            # placements are the same ones computeJointJacobians then recomputes)
+            pin.framesForwardKinematics(model, data, out)
+            errors = [
+                pin.log6(oMf[frame].actInv(target)).vector[keep] for frame, target, keep in held
+            ]
             err = np.concatenate(errors)
             squared = float(err @ err)
             if squared >= best:
@@ -478,6 +491,8 @@ class WholeBodyTracker:
             if squared < tuning.HOLD_STANCE_TOLERANCE**2:
                 break
             if iteration < tuning.HOLD_STANCE_ITERATIONS:
+                pin.computeJointJacobians(model, data, out)
+                rows = [self._frame_jacobian(frame, target)[keep] for frame, target, keep in held]
                 out = self._hold_step(out, np.concatenate(rows), err, lower, upper)
         self._stamp += 1
         return kept
@@ -494,7 +509,7 @@ class WholeBodyTracker:
         for _ in range(2):
             active = jac[:, free]
             gram = active @ active.T
-            gram[np.diag_indices_from(gram)] += tuning.HOLD_STANCE_DAMPING
+            gram.flat[:: len(gram) + 1] += tuning.HOLD_STANCE_DAMPING  # the diagonal
             step = np.zeros(model.nv)
             step[free] = -(active.T @ np.linalg.solve(gram, err))
             out = np.asarray(pin.integrate(model, q, step), dtype=np.float64)
@@ -609,6 +624,12 @@ class WholeBodyTracker:
         jac = -pin.Jlog6(target.actInv(here)) @ local
         return jac, error
 
+    def _frame_jacobian(self, frame: int, target: Any) -> FloatArray:
+        """The Jacobian (6, nv) of :meth:`_frame_error`, without its error."""
+        here = self.data.oMf[frame]
+        local = pin.getFrameJacobian(self.model, self.data, frame, pin.LOCAL)
+        return np.asarray(-pin.Jlog6(target.actInv(here)) @ local, dtype=np.float64)
+
     def inequalities(
         self, dt: float, dampers: bool, root_bounded: bool
     ) -> tuple[FloatArray, FloatArray]:
@@ -650,14 +671,25 @@ class WholeBodyTracker:
         lower[config] = np.maximum(lower[config], reach)
         return lower, upper
 
+    def offer_poses(self, q: FloatArray, poses: Poses) -> None:
+        """The :func:`shape_poses` ``poses`` of the motion geometry at ``q`` (nq,), computed
+        by the caller (the keyframe checker, where the next control step starts): a step
+        from exactly ``q`` uses them instead of computing them again (the same arrays, so
+        that the distance bounds see placements they already know)."""
+        self._offered = (np.array(q, dtype=np.float64), poses)
+
     def _damper_rows(self) -> list[tuple[FloatArray, FloatArray]]:
         """The scene then self-collision damper rows (G, h) at the kinematics of the last
-        :meth:`objective` (the shape placements computed once per step)."""
+        :meth:`objective` (the shape placements computed once per step, or offered)."""
         if self._placed != self._stamp:
             pin.updateGeometryPlacements(
                 self.model, self.data, self.character.motion_geometry, self.geometry_data
             )
-            self._poses = shape_poses(self.geometry_data)
+            offered = self._offered
+            if offered is not None and np.array_equal(offered[0], self.q):
+                self._poses = offered[1]
+            else:
+                self._poses = shape_poses(self.geometry_data)
             self._jacobians = PointJacobians(self.model, self.data, self._masks)
             self._placed = self._stamp
         out = []

@@ -16,7 +16,7 @@ import pytest
 
 from planner.character import get_character
 from planner.contact import context, reachability, standing
-from planner.kinematics import borrowed_data
+from planner.kinematics import borrowed_data, borrowed_geometry_data
 from planner.kinematics import model as kinematics_model
 from planner.motion import clearance, tracker
 from planner.scene import affordance
@@ -66,6 +66,8 @@ def _cold(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(affordance, "_LOOP_EDGES", {})
     monkeypatch.setattr(tracker, "_TERMS", {})
     monkeypatch.setattr(clearance, "_PAIR_SHAPES", {})
+    monkeypatch.setattr(clearance, "_PAIR_LISTS", {})
+    monkeypatch.setattr(clearance, "_BOUNDS", {})
 
 
 @pytest.mark.usefixtures("in_process_worker")
@@ -97,6 +99,18 @@ def test_borrowed_data_is_the_blocks_alone() -> None:
             assert inner is not outer
         with borrowed_data(model) as again:
             assert again is inner
+
+
+def test_borrowed_geometry_data_is_the_blocks_alone() -> None:
+    """Nested borrows get distinct pin.GeometryData, distance requests signed; one given
+    back is lent again."""
+    geometry = get_character("quadruped").motion_geometry
+    with borrowed_geometry_data(geometry) as outer:
+        with borrowed_geometry_data(geometry) as inner:
+            assert inner is not outer
+        with borrowed_geometry_data(geometry) as again:
+            assert again is inner
+    assert all(r.enable_signed_distance for r in again.distanceRequests)
 
 
 def test_shared_memory_drops_the_least_recently_used(monkeypatch: pytest.MonkeyPatch) -> None:
