@@ -207,6 +207,14 @@ def borrowed_data(model: pin.Model) -> Iterator[pin.Data]:
             idle.append(data)
 
 
+def signed_geometry_data(geometry: pin.GeometryModel) -> pin.GeometryData:
+    """A new ``pin.GeometryData`` of ``geometry`` whose distance requests are signed."""
+    geometry_data = pin.GeometryData(geometry)
+    for request in geometry_data.distanceRequests:
+        request.enable_signed_distance = True
+    return geometry_data
+
+
 @contextmanager
 def borrowed_geometry_data(geometry: pin.GeometryModel) -> Iterator[pin.GeometryData]:
     """A ``pin.GeometryData`` for ``geometry`` with signed distance requests, this block's
@@ -215,12 +223,7 @@ def borrowed_geometry_data(geometry: pin.GeometryModel) -> Iterator[pin.Geometry
     user updates the placements it reads, and a distance query does not depend on the ones
     before it (the requests' default GJK guess, no cached one)."""
     idle = _idle(geometry, "geometry_data")
-    if idle:
-        geometry_data = idle.pop()
-    else:
-        geometry_data = pin.GeometryData(geometry)
-        for request in geometry_data.distanceRequests:
-            request.enable_signed_distance = True
+    geometry_data = idle.pop() if idle else signed_geometry_data(geometry)
     try:
         yield geometry_data
     finally:

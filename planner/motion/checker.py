@@ -17,12 +17,12 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from planner.character import Character
+from planner.kinematics.model import signed_geometry_data
 from planner.motion import tuning
 from planner.motion.clearance import (
     PairBroadPhase,
     SceneDistances,
     shape_poses,
-    signed_geometry_data,
 )
 from planner.motion.tracker import WholeBodyTracker, effector_geometries
 

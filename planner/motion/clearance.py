@@ -36,6 +36,7 @@ from planner.character.collision import (
     few_segment_distances,
     segment_distances,
 )
+from planner.kinematics.model import signed_geometry_data
 from planner.motion import tuning
 
 FloatArray = NDArray[np.float64]
@@ -60,14 +61,6 @@ _MASKS: dict[int, tuple[Any, NDArray[np.bool_]]] = {}
 _BOUNDS: dict[int, tuple[Any, tuple[FloatArray, FloatArray]]] = {}
 _PAIR_LISTS: dict[int, tuple[Any, tuple[list[tuple[int, int]], list[int]]]] = {}
 _MEMO_SIZE = 64  # geometry models remembered by each memo below (characters in a process)
-
-
-def signed_geometry_data(geometry: Any) -> Any:
-    """A pin.GeometryData of ``geometry`` whose distance requests are signed."""
-    geometry_data = pin.GeometryData(geometry)
-    for request in geometry_data.distanceRequests:
-        request.enable_signed_distance = True
-    return geometry_data
 
 
 def _shape_bounds(geometry: Any) -> tuple[FloatArray, FloatArray]:

@@ -44,6 +44,7 @@ from pink.limits import ConfigurationLimit, VelocityLimit
 from scipy.spatial.transform import Rotation
 
 from planner.character import Character
+from planner.kinematics.model import signed_geometry_data
 from planner.motion import tuning
 from planner.motion.clearance import (
     PointJacobians,
@@ -51,7 +52,6 @@ from planner.motion.clearance import (
     SceneClearance,
     SelfClearance,
     shape_poses,
-    signed_geometry_data,
     support_masks,
 )
 
