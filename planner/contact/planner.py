@@ -18,7 +18,7 @@ from planner.contact.context import ContactParams, make_context
 from planner.contact.reachability import ReachabilityChecker
 from planner.contact.root_path import RootPath, plan_root_path
 from planner.contact.root_sampler import OrientationBounds
-from planner.contact.sequence import SequenceParams, contact_sequence
+from planner.contact.sequence import SequenceParams, contact_sequence, resume_index
 from planner.contact.slope import LEVEL_PITCH, follow_slope, straight_slope_path
 from planner.contact.standing import standing_state, state_from_root_pose
 from planner.contact.state import ContactState
@@ -118,6 +118,9 @@ def _resolve(
 
 
 _RETRY_JITTERS = (0.05, 0.15, 0.3, 0.3)
+RESUME_BACK_M = 0.4
+"""m of guide a retry backs off from where a walk stalled: the walk is resumed from its last
+state with every leg down this far behind its furthest progress."""
 SEARCH_SHARE = budgets.SEARCH_SHARE  # of the work (and of the clock cap) for the search
 MAX_REPLAN_WALKS = 8
 """Contact walks a plan may start again when its whole-body motion cannot make a contact
@@ -130,9 +133,23 @@ REPLAN_RESERVE = 1.5
 """A contact change is planned again only while the work left would build the fallback
 (2PAC's curve through the states first planned, whole) this many times over: re-planning
 never costs the answer its keyframes."""
+REPLAN_SHARE_KEPT = 0.5
+"""Share of the work left that a re-plan leaves for the keyframes when that work could not
+build the fallback whole anyway (a long plan whose motion is short of work): the last clean
+trial is then the answer if the re-plan fails."""
 REPLAN_JITTERS = (0.05, 0.15, 0.3)
 """m, the contact candidates' score jitter of the walks tried for one re-planned change (as
 a stuck walk's retries)."""
+
+
+def _after(
+    prefix: tuple[ContactState, ...], walk: PlanResult[tuple[ContactState, ...]]
+) -> PlanResult[tuple[ContactState, ...]]:
+    """The walk ``walk`` resumed from the state after ``prefix``, with ``prefix`` before it
+    (its stats count the whole sequence's states and how many were kept)."""
+    states = (*prefix, *(walk.value or ()))
+    stats = {**walk.stats, "states": len(states), "resumed_at": len(prefix)}
+    return PlanResult(walk.status, states, stats, walk.message)
 
 
 def _better(
@@ -283,7 +300,16 @@ def plan_contact_motion(
             break
         attempts += 1
         path: PlanResult[RootPath]
-        if direct is not None:
+        resumed = best is not None and not stranded
+        if resumed:
+            # a walk that stalled (every leg releasable) is walked on from a little before
+            # where it stalled, along the same guide, its states up to there kept
+            assert best is not None
+            poses, path = best[1], best[2]
+            kept = best[0].value or (start_state.value,)
+            k = resume_index(kept, poses, RESUME_BACK_M)
+            prefix, start_from = tuple(kept[:k]), kept[k]
+        elif direct is not None:
             poses, path = direct, PlanResult(PlanStatus.SOLVED, None, {"direct_path": 1})
         else:
             path = plan_root_path(
@@ -313,16 +339,21 @@ def plan_contact_motion(
             jitter=max(opts.sequence.jitter, jitter),
             release_guard=opts.sequence.release_guard or stranded,
         )
+        if not resumed:
+            prefix, start_from = (), start_state.value
         sequence = contact_sequence(
             ctx,
-            start_state.value,
+            start_from,
             poses,
             goal_state.value,
             rng=rng,
             until=walk,
             params=params,
             limbs=opts.limbs,
+            resume=resumed,
         )
+        if prefix:
+            sequence = _after(prefix, sequence)
         lap("contacts")
         stranded = stranded or bool(sequence.stats.get("stranded"))
         if best is None or _better(sequence, best[0]):
@@ -359,8 +390,12 @@ def plan_contact_motion(
             (k for k in (phase, phase - 1) if 0 <= k < len(planned) - 1 and _made(planned, k)),
             None,
         )
-        # the work the fallback (2PAC's curve through the first states, built whole) needs
-        reserve = REPLAN_RESERVE * reserve_s * opts.rate * keyframe_units
+        # the work the fallback (2PAC's curve through the first states, built whole) needs;
+        # when the work left cannot build it anyway, re-planning is the better use of it
+        fallback = reserve_s * opts.rate * keyframe_units
+        reserve = REPLAN_RESERVE * fallback
+        if budget.left() < fallback:
+            reserve = REPLAN_SHARE_KEPT * budget.left()
         if change is None or opts.timing.attractors or budget.left() <= reserve:
             return None
         limb = _made(planned, change)

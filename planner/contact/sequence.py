@@ -341,6 +341,23 @@ def advance_body(
     return moved if check_state(ctx, moved).valid else None
 
 
+def resume_index(states: Sequence[ContactState], poses: FloatArray, back_m: float) -> int:
+    """Index into ``states`` (a walk along the guide ``poses`` (n, 4, 4)) of the state a retry
+    resumes from: the last one at least ``back_m`` m of guide behind the walk's furthest
+    progress that holds as many contacts as the first state (every leg down); 0 if none."""
+    guide = _Guide.of(np.asarray(poses, dtype=np.float64))
+    progress, s = [], 0.0
+    for state in states:
+        s = guide.progress(np.asarray(state.q[:3]), s)
+        progress.append(s)
+    limit = max(progress) - back_m
+    full = len(states[0].contacts)
+    for k in range(len(states) - 1, 0, -1):
+        if progress[k] <= limit and len(states[k].contacts) >= full:
+            return k
+    return 0
+
+
 def contact_sequence(
     ctx: ContactContext,
     start: ContactState,

@@ -119,9 +119,10 @@ def planned(request: pytest.FixtureRequest) -> tuple[str, PlanResult[ContactPlan
 # still collides is not SOLVED). Measured on the seed of each scenario; SOLVED is accepted too.
 MOTION_SHORTFALL = frozenset(
     {
-        "rubble_quadruped",  # solves clean at its seed and at seed + 2; the next seed with
-        # its start 1 mm back solves, 1 mm on its work runs out at 61 of 99 phases (swings
-        # stepping up past ridges tracked again, slowed, until they land)
+        "rubble_quadruped",  # solves clean at its seed, at seed + 2 and at the next seed
+        # with its start 1 mm on (the test's case: its stalled walk resumed, a re-planned
+        # step onto a rock, 14 work units to spare); 1 mm back, a front leg's step 24 cm up
+        # onto a rock drives its shin 39 mm into the rock at every pace, re-planned too
     }
 )
 
@@ -325,7 +326,11 @@ def test_same_seed_same_plan(planned) -> None:  # type: ignore[no-untyped-def]
     assert len(again.value.states) == len(result.value.states)
     for a, b in zip(result.value.states, again.value.states, strict=True):
         assert np.array_equal(a.q, b.q)
-    assert len(again.value.motion.keyframes) == len(result.value.motion.keyframes)
+    # the keyframes too, bit for bit: nothing an earlier plan of the process left behind (a
+    # pooled collision data's GJK guesses once did) may move them
+    frames = zip(result.value.motion.keyframes, again.value.motion.keyframes, strict=True)
+    for a, b in frames:
+        assert a.t == b.t and np.array_equal(a.q, b.q)
 
 
 @pytest.mark.parametrize("name", ["flat_walk_humanoid", "hpp_ground_talos"])

@@ -1,0 +1,91 @@
+"""A walk that stalls is retried from a little before where it stalled, its states up to
+there kept (``planner.contact.planner``, ``sequence.resume_index``), instead of walking the
+whole guide again."""
+
+from __future__ import annotations
+
+import itertools
+from typing import Any
+
+import numpy as np
+import pytest
+
+import planner.contact.planner as contact_planner
+from planner.contact.planner import RESUME_BACK_M, Endpoint, plan_contact_motion
+from planner.contact.sequence import resume_index
+from planner.contact.state import ContactState
+from planner.result import PlanResult, PlanStatus
+from planner.scene.builtin import GAPS_HEIGHTS, gaps_platform_ranges
+from tests.planner.contact.contact_helpers import character_and_data, flat_walk, scene
+
+
+@pytest.mark.parametrize("back_m", [0.0, 0.2, RESUME_BACK_M, 0.7, 5.0])
+def test_the_resume_point_is_the_last_state_with_every_leg_down_that_far_back(
+    back_m: float,
+) -> None:
+    plan = flat_walk("quadruped")
+    assert plan.value is not None
+    states, poses = plan.value.states, plan.value.root_path
+    k = resume_index(states, poses, back_m)
+    x = np.array([float(s.q[0]) for s in states])  # the guide runs straight along +x
+    spacing = float(np.linalg.norm(poses[1, :3, 3] - poses[0, :3, 3]))
+    full = len(states[0].contacts)
+    assert len(states[k].contacts) == full
+    if k == 0:  # no state with every leg down stands that far back
+        later = [j for j in range(1, len(states)) if len(states[j].contacts) == full]
+        assert all(x[j] > x.max() - back_m - spacing for j in later)
+        return
+    assert x[k] <= x.max() - back_m + spacing
+    for j in range(k + 1, len(states)):  # the last such state
+        if len(states[j].contacts) == full:
+            assert x[j] > x.max() - back_m - spacing
+
+
+def test_a_stalled_walk_is_walked_on_from_before_where_it_stalled() -> None:
+    walks: list[tuple[ContactState, bool, PlanResult[tuple[ContactState, ...]]]] = []
+    real_walk = contact_planner.contact_sequence
+
+    def recorded(ctx: Any, start: ContactState, *args: Any, **kwargs: Any) -> Any:
+        walk = real_walk(ctx, start, *args, **kwargs)  # the real walk, recorded
+        walks.append((start, bool(kwargs.get("resume")), walk))
+        return walk
+
+    character, data = character_and_data("humanoid")
+    ranges = gaps_platform_ranges()
+    middle = [(x0 + x1) / 2 for x0, x1 in ranges]
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(contact_planner, "contact_sequence", recorded)
+        # the humanoid cannot step across the first gap at this seed: its walks stall there
+        result = plan_contact_motion(
+            scene("gaps"),
+            character,
+            data,
+            Endpoint(stand_at=np.array([middle[0], 0.0, GAPS_HEIGHTS[0]])),
+            Endpoint(stand_at=np.array([middle[1], 0.0, GAPS_HEIGHTS[1]])),
+            rng=np.random.default_rng(1),
+            time_budget_s=10.0,
+            cap_s=600.0,
+        )
+    assert result.status is not PlanStatus.SOLVED
+    assert len(walks) >= 2
+    first, resumed, stalled = walks[0]
+    assert not resumed and stalled.status is PlanStatus.APPROXIMATE
+    assert not stalled.stats.get("stranded")
+    start, resumed, _ = walks[1]
+    assert resumed
+    before = stalled.value
+    assert before is not None
+    # the retry starts from one of the stalled walk's states, every leg down, that far back
+    k = next(j for j, state in enumerate(before) if state is start)
+    assert len(start.contacts) == len(first.contacts)
+    assert float(start.q[0]) <= max(float(s.q[0]) for s in before) - RESUME_BACK_M + 0.05
+    # whatever attempt won, the answer is one contact change at a time from the start
+    assert result.value is not None
+    answer = result.value.states
+    assert answer[0] is first
+    for a, b in itertools.pairwise(answer):
+        assert b.differs_by_one(a)
+    assert k >= 1
+    # a resumed answer keeps the stalled walk's states before the point it resumed from
+    kept = min(int(result.stats.get("resumed_at", 0)), k)
+    assert all(a is b for a, b in zip(answer[:kept], before[:kept], strict=True))
