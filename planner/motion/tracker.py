@@ -58,6 +58,9 @@ from planner.motion.clearance import (
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
+_UPRIGHT = math.cos(1e-3)  # a trunk target this close to upright is upright
+_COS_TILT_WATCH = math.cos(tuning.TILT_WATCH)
+_COS_MAX_TILT = math.cos(tuning.MAX_TILT)
 _DAQP_EQUALITY = 5  # daqp's constraint sense of an equality row
 # daqp's constraint sense type (numpy converts a ctypes type to a dtype slowly: once here)
 _DAQP_SENSE = np.dtype(ctypes.c_int)
@@ -366,6 +369,8 @@ class WholeBodyTracker:
         self._jacobians = PointJacobians(model, self.data, self._masks)
         # shape placements computed elsewhere at a configuration (:meth:`offer_poses`)
         self._offered: tuple[FloatArray, Poses] | None = None
+        # the trunk tilt bound of the last objective, if the trunk aims upright and leans
+        self._tilt_row: tuple[FloatArray, FloatArray] | None = None
 
     def trunk_rotation(self, posture: FloatArray, level: bool = True) -> FloatArray:
         """(3, 3) trunk orientation aimed at from a planned configuration (nq,): with
@@ -575,6 +580,8 @@ class WholeBodyTracker:
         jac, err = self._frame_error(self._root_frame, pin.SE3(trunk, posture[:3]))
         rows.append(self._trunk_weights[:, None] * jac[self._trunk_keep])
         errors.append(self._trunk_weights * (-gain * err[self._trunk_keep]))
+        upright = targets.level_trunk and trunk[2, 2] > _UPRIGHT
+        self._tilt_row = self._tilt_bound() if upright else None
         stacked = np.concatenate(rows)  # 2-D blocks: vstack's result, without its checks
         hessian = stacked.T @ stacked
         linear = -(np.concatenate(errors) @ stacked)
@@ -602,6 +609,20 @@ class WholeBodyTracker:
         linear[self._root_nv :] += weight * gain * pull
         self.scene.set_phase(frozenset(skipped), light)
         return StepQP(hessian, linear, held)
+
+    def _tilt_bound(self) -> tuple[FloatArray, FloatArray] | None:
+        """The row (G (1, nv), h (1,)) keeping the trunk's tilt (its z axis from the world's)
+        under ``MAX_TILT``, velocity-damper form on cos(tilt), at the kinematics of the last
+        :meth:`objective`; None while the tilt is under ``TILT_WATCH``."""
+        rotation = self.data.oMf[self._root_frame].rotation
+        cos_tilt = float(rotation[2, 2])
+        if cos_tilt > _COS_TILT_WATCH:
+            return None
+        up = rotation[2, :]  # the world's z axis in the trunk's frame
+        row = np.zeros((1, self.model.nv))
+        # d cos(tilt) = omega . (e_z x up), omega the trunk's angular step (its frame)
+        row[0, 3:6] = -np.array([-up[1], up[0], 0.0])
+        return row, np.array([tuning.TILT_GAIN * (cos_tilt - _COS_MAX_TILT)])
 
     def _held_target(self, pose: FloatArray) -> Any:
         """``pose`` (4, 4) as a pin.SE3, made once per stance placement (a phase holds the
@@ -696,6 +717,7 @@ class WholeBodyTracker:
         for rows in (
             self.scene.rows_at(self.data, self.geometry_data, self._poses, self._jacobians),
             self.self_clearance.rows_at(self.geometry_data, self._poses, self._jacobians),
+            self._tilt_row,
         ):
             if rows is not None:
                 out.append(rows)

@@ -32,7 +32,7 @@ from planner.motion.sequence import phase_kinematics
 from planner.offline import load_offline_data
 from planner.result import PlanResult, PlanStatus
 from planner.scene import Scene
-from tests.motion_audit import audit_from_domain
+from tests.motion_audit import TILT_TOL_DEG, audit_from_domain
 from tests.paths import gecko_cache_dir
 from tests.scenarios.jumps.scenes import load_scenario_scene
 
@@ -217,13 +217,16 @@ def test_keyframes_pass_the_independent_audit(planned) -> None:  # type: ignore[
     (tests/motion_audit.py, no planner code): no joint over its speed limit or 10 rad/s, no
     root jump over 5 cm between 30 Hz keyframes, the keyframe COM within 2 cm of its curve
     (p99), every phase animated; no link over 1 cm into the scene but the stance effectors
-    and no self-collision over 1 cm, except on the plans listed as still colliding."""
+    and no self-collision over 1 cm, except on the plans listed as still colliding; a
+    character whose trunk stays level (all but the hexapod) never tilts over 30 degrees."""
     name, result, scene, character, _ = planned
     motion = result.value.motion
     audit = audit_from_domain(character.id, scene, motion.keyframes, motion.phases, motion.com)
     assert audit.pops == 0 and audit.root_jumps == 0, audit.summary()
     assert audit.com_error_p99_m <= 0.02, audit.summary()
     assert audit.phases_animated == audit.phases, audit.summary()
+    if character.max_pitch <= tuning.LEVEL_TRUNK_PITCH:
+        assert audit.tilt_max_deg <= TILT_TOL_DEG, audit.summary()
     if name not in STILL_COLLIDING:
         assert audit.penetrating_frames == 0, audit.summary()
         assert audit.self_collision_frames == 0, audit.summary()
