@@ -656,7 +656,8 @@ class WholeBodyTracker:
     ) -> tuple[FloatArray, FloatArray]:
         """``G dq <= h`` at the kinematics of the last :meth:`objective`: joint position
         limits (pink's ``ConfigurationLimit`` rows), speed limits (``VelocityLimit``), then
-        with ``dampers`` the scene and self-collision dampers (``clearance``)."""
+        with ``dampers`` the scene and self-collision dampers (``clearance``) and the trunk's
+        tilt bound (:meth:`_tilt_bound`)."""
         q = self.q
         gain = self._config_gain
         h_config = np.concatenate(
@@ -701,7 +702,8 @@ class WholeBodyTracker:
 
     def _damper_rows(self) -> list[tuple[FloatArray, FloatArray]]:
         """The scene then self-collision damper rows (G, h) at the kinematics of the last
-        :meth:`objective` (the shape placements computed once per step, or offered)."""
+        :meth:`objective` (the shape placements computed once per step, or offered), then
+        the trunk's tilt bound if it has one."""
         if self._placed != self._stamp:
             pin.updateGeometryPlacements(
                 self.model, self.data, self.character.motion_geometry, self.geometry_data
