@@ -315,6 +315,7 @@ _DETOUR_SHARE = 1.3
 """A surface whose nearest point is avoided is asked for its points nearest to points this
 many ``AVOID_RADIUS`` around the avoided one instead."""
 _HEADROOM = 0.1  # m of free space wanted above a contact point
+_HEADROOM_RADIUS = 0.03  # m, at least, of that free space's radius (a point foot's ankle)
 _REAIM_RADIUS = 0.05  # m: a whole-body reach that ends this close is aimed again where it got
 
 
@@ -329,7 +330,7 @@ def _uncovered(ctx: ContactContext, sid: int, point: FloatArray, radius: float) 
         normal = ctx.scene.surfaces[sid].normal
         if ctx.scene.inside_solid(point + 0.005 * normal):
             return False
-        r = 0.5 * radius
+        r = max(0.5 * radius, _HEADROOM_RADIUS)
         pose = np.eye(4)
         pose[:3, :3] = plane_basis(normal).T
         pose[:3, 3] = point + normal * (0.005 + r + 0.5 * _HEADROOM)
