@@ -121,9 +121,6 @@ _RETRY_JITTERS = (0.05, 0.15, 0.3, 0.3)
 RESUME_BACK_M = 0.4
 """m of guide a retry backs off from where a walk stalled: the walk is resumed from its last
 state with every leg down this far behind its furthest progress."""
-STRANDED_BACK = 2.0
-"""A walk that stalled unable to release a leg it left behind backs off this many times
-``RESUME_BACK_M`` (the body may have stretched over that leg for a while)."""
 SEARCH_SHARE = budgets.SEARCH_SHARE  # of the work (and of the clock cap) for the search
 MAX_REPLAN_WALKS = 8
 """Contact walks a plan may start again when its whole-body motion cannot make a contact
@@ -296,6 +293,7 @@ def plan_contact_motion(
     best: tuple[PlanResult[tuple[ContactState, ...]], FloatArray, PlanResult[Any]] | None = None
     attempts = 0
     stranded = False  # a walk stalled unable to release a leg it left behind
+    resume_gained = True  # the last resumed walk got further than the walks before it
     for jitter in _RETRY_JITTERS:
         # A stuck walk is walked on from before where it stalled, with noisier foothold
         # choices; the best attempt (SOLVED, else the furthest along) is kept.
@@ -303,15 +301,16 @@ def plan_contact_motion(
             break
         attempts += 1
         path: PlanResult[RootPath]
-        resumed = best is not None
+        resumed = best is not None and resume_gained and not stranded
         if resumed:
-            # a walk that stalled is walked on from a little before where it stalled (twice
-            # as far back if it left a leg behind that it could not release), along the same
-            # guide, its states up to there kept
+            # a walk that stalled is walked on from a little before where it stalled, along
+            # the same guide, its states up to there kept; once that gains nothing, or after
+            # a walk left a leg behind that it could not release, the next walk starts over
+            # on a new guide
             assert best is not None
             poses, path = best[1], best[2]
             kept = best[0].value or (start_state.value,)
-            k = resume_index(kept, poses, RESUME_BACK_M * (STRANDED_BACK if stranded else 1.0))
+            k = resume_index(kept, poses, RESUME_BACK_M)
             prefix, start_from = tuple(kept[:k]), kept[k]
         elif direct is not None:
             poses, path = direct, PlanResult(PlanStatus.SOLVED, None, {"direct_path": 1})
@@ -360,7 +359,10 @@ def plan_contact_motion(
             sequence = _after(prefix, sequence)
         lap("contacts")
         stranded = stranded or bool(sequence.stats.get("stranded"))
-        if best is None or _better(sequence, best[0]):
+        gained = best is None or _better(sequence, best[0])
+        if resumed:
+            resume_gained = gained
+        if gained:
             best = (sequence, poses, path)
     assert best is not None
     sequence, poses, path = best
