@@ -322,8 +322,9 @@ _REAIM_RADIUS = 0.05  # m: a whole-body reach that ends this close is aimed agai
 def _uncovered(ctx: ContactContext, sid: int, point: FloatArray, radius: float) -> bool:
     """Whether the space just above ``point`` (3,) on surface ``sid`` is free: not inside a
     solid of the scene (ground running on under a staircase), and a capsule of half the
-    patch ``radius`` standing ``_HEADROOM`` m along the normal, starting just off the
-    surface, touches nothing (ground under the edge of a slab, or an obstacle)."""
+    patch ``radius`` (at least ``_HEADROOM_RADIUS``: a point foot's ankle and shin are wider
+    than its patch) standing ``_HEADROOM`` m along the normal, starting just off the surface,
+    touches nothing (ground under the edge of a slab, an obstacle, a riser or rock side)."""
     key = ("uncovered", sid, radius, tuple(np.round(point, 2).tolist()))
 
     def test() -> bool:

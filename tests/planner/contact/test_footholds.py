@@ -6,7 +6,13 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planner.contact.generation import _patch_radius, _point_on, nearest_foothold
+from planner.contact.generation import (
+    _HEADROOM_RADIUS,
+    _patch_radius,
+    _point_on,
+    _uncovered,
+    nearest_foothold,
+)
 from planner.scene.builtin import STAIRS_RISE, STAIRS_START_X, STAIRS_TREAD
 from tests.planner.contact.twister_game import context, scene
 
@@ -59,3 +65,21 @@ def test_no_foothold_under_the_stairs() -> None:
     assert found is not None
     assert found[2] > STAIRS_RISE - 1e-6  # on a tread, not on the covered ground
     assert nearest_foothold(ctx, "left_foot", np.array([0.0, 0.0, 3.0]), within=0.5) is None
+
+
+def test_a_point_foot_keeps_clear_of_a_riser() -> None:
+    """A point foot's patch is a millimetre, its ankle and shin are not: a foothold on the
+    ground hard against a step's riser would drive the shin into the step when the foot
+    steps up from it (rubble_quadruped), so the free space above a foothold is at least
+    ``_HEADROOM_RADIUS`` wide."""
+    ctx = context("quadruped", "stairs", twister=False)
+    radius = _patch_radius(ctx, "lf_foot")
+    assert radius < _HEADROOM_RADIUS  # the case: the patch alone would allow it
+    ground = next(
+        i
+        for i, s in enumerate(STAIRS.surfaces)
+        if abs(s.centroid[2]) < 1e-6 and s.contains_projection(np.array([[0.0, 0.0, 0.0]]))[0]
+    )
+    for gap, free in ((0.01, False), (0.025, False), (0.04, True), (0.1, True)):
+        point = np.array([STAIRS_START_X - gap, 0.0, 0.0])
+        assert _uncovered(ctx, ground, point, radius) is free, gap

@@ -305,6 +305,12 @@ FURTHER_SEEDS = (
     # stepping up, the swing foot behind the body, the trunk leaned back 41 degrees before
     # the tracker bounded a level trunk's tilt
     ("stairs_humanoid", 12),
+    # its first walk stalls unable to release a leg it left behind; walked on from there,
+    # every retry stalled again at 3 m of 4.1 m, started over on a new guide it solves
+    ("stairs_handrail_humanoid", 2),
+    # a front foot set on the ground hard against a rock's side drove its shin 40 to 60 mm
+    # into the rock stepping up, before footholds kept 3 cm of free radius above them
+    ("rubble_quadruped", 7),
 )
 
 
