@@ -117,7 +117,7 @@ def _resolve(
     return state_from_root_pose(scene, character, data, endpoint.root_pose, checker=checker)
 
 
-_RETRY_JITTERS = (0.05, 0.15, 0.3, 0.3)
+_RETRY_JITTERS = (0.05, 0.15, 0.3, 0.3, 0.3, 0.3)
 RESUME_BACK_M = 0.4
 """m of guide a retry backs off from where a walk stalled: the walk is resumed from its last
 state with every leg down this far behind its furthest progress."""
@@ -362,6 +362,8 @@ def plan_contact_motion(
         gained = best is None or _better(sequence, best[0])
         if resumed:
             resume_gained = gained
+        elif gained:
+            resume_gained = True  # a new best walk may be walked on in turn
         if gained:
             best = (sequence, poses, path)
     assert best is not None
