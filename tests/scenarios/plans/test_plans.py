@@ -306,6 +306,9 @@ FURTHER_SEEDS = (
     # a front foot set on the ground hard against a rock's side drove its shin 40 to 60 mm
     # into the rock stepping up, before footholds kept 3 cm of free radius above them
     ("rubble_quadruped", 7),
+    # walked on twice from where its first walk stalled, then started over: four walks
+    # stalled with a fifth of the search spent before a fifth and sixth walk were allowed
+    ("hpp_stair_bauzil_talos", 11),
 )
 
 
