@@ -118,6 +118,8 @@ def _resolve(
 
 
 _RETRY_JITTERS = (0.05, 0.15, 0.3, 0.3, 0.3, 0.3)
+"""m, the contact candidates' score jitter of each contact walk a plan tries, in order: at
+most this many walks, while the search budget lasts."""
 RESUME_BACK_M = 0.4
 """m of guide a retry backs off from where a walk stalled: the walk is resumed from its last
 state with every leg down this far behind its furthest progress."""
