@@ -20,7 +20,8 @@ Scene
     - ``halfspace``: the ground. A horizontal flat sheet, or a convex slab with a flat top,
       whose x-y box covers at least ``GROUND_COVER`` of the scene's and whose top is no
       higher than the top of any other component. Everything below it and within its x-y
-      footprint is inside (true depth).
+      footprint is inside (true depth), but under a hole of the sheet (debris set into the
+      ground) a link is measured against the sheet's own top triangles.
     - ``convex``: a component whose faces all lie on the boundary of its (3-D) convex hull is
       that hull's solid (``coal.Convex``): closed boxes and cylinders, and the boxes left open
       at the bottom where they stand on the ground, posts open where they run into a rail.
@@ -304,6 +305,24 @@ def _probe(geometry: Any) -> _Probe:
 # -- scene --------------------------------------------------------------------------------------
 
 
+def _over(triangles: FloatArray, point: FloatArray, tolerance: float = 1e-9) -> bool:
+    """Whether ``point`` (3,) lies over or under one of ``triangles`` (m, 3, 3) seen from
+    above (x-y projection, within ``tolerance`` m)."""
+    if len(triangles) == 0:
+        return False
+    a, b, c = triangles[:, 0, :2], triangles[:, 1, :2], triangles[:, 2, :2]
+    e1, e2, rel = b - a, c - a, np.asarray(point, dtype=np.float64)[:2] - a
+    det = e1[:, 0] * e2[:, 1] - e2[:, 0] * e1[:, 1]
+    valid = np.abs(det) > 1e-15
+    det = np.where(valid, det, 1.0)
+    u = (rel[:, 0] * e2[:, 1] - e2[:, 0] * rel[:, 1]) / det
+    w = (e1[:, 0] * rel[:, 1] - rel[:, 0] * e1[:, 1]) / det
+    scale = np.maximum(np.linalg.norm(e1, axis=1), np.linalg.norm(e2, axis=1))
+    slack = tolerance / np.maximum(scale, 1e-12)
+    inside = valid & (u >= -slack) & (w >= -slack) & (u + w <= 1.0 + slack)
+    return bool(np.any(inside))
+
+
 @dataclass(frozen=True, eq=False)
 class SceneObject:
     """One component of the scene: ``kind`` halfspace / convex / mesh, its coal geometry, its
@@ -336,6 +355,7 @@ class AuditScene:
         bounds = np.array([obj.bounds for obj in self.objects]).reshape(-1, 2, 3)
         self.lower, self.upper = bounds[:, 0], bounds[:, 1]
         self._probes: dict[int, _Probe] = {}
+        self._sheets: dict[int, Any] = {}  # per ground object, its top triangles as a BVH
 
     @staticmethod
     def _classify(mesh: trimesh.Trimesh) -> list[SceneObject]:
@@ -392,8 +412,13 @@ class AuditScene:
                 # link beside the plate (over debris lying off it) is not under the ground
                 bounds = np.array([[b[0, 0], b[0, 1], -np.inf], [b[1, 0], b[1, 1], top]])
                 halfspace = coal.Halfspace(np.array([0.0, 0.0, 1.0]), top)
+                # the scene's triangles at its top height (not the split part's, whose
+                # holes trimesh fills): where the sheet has a hole (debris set into the
+                # ground), nothing under the hole is inside the ground
+                tris = np.asarray(mesh.triangles, dtype=np.float64)
+                on_top = np.all(np.abs(tris[:, :, 2] - top) < GEOMETRY_EPS, axis=1)
                 objects.append(
-                    SceneObject("halfspace", halfspace, bounds, True, np.zeros((0, 3, 3)), name)
+                    SceneObject("halfspace", halfspace, bounds, True, tris[on_top], name)
                 )
             elif convex and hull is not None and not flat_z:
                 geometry = _convex_from_points(v[hull.vertices])
@@ -473,6 +498,10 @@ class AuditScene:
         point on the link (world)."""
         tf = _transform(rotation, translation)
         d, witness = _signed_distance(probe.geometry, tf, obj.geometry, _IDENTITY)
+        if obj.kind == "halfspace" and d < 0.0 and not _over(obj.triangles, witness):
+            # the deepest point lies under a hole of the ground sheet: the link is measured
+            # against the sheet's own triangles there (it may still cross the hole's rim)
+            d, witness = self._sheet_distance(probe, obj, tf)
         if obj.kind == "mesh" and d <= 0.0:
             # coal's distance to a triangle soup is not the deepest triangle: ask every one
             request = coal.CollisionRequest()
@@ -498,6 +527,28 @@ class AuditScene:
                     depth = max(surface, 0.0) + float(probe.inner[k])
                     if -depth < d:
                         d, witness = -depth, world[k]
+        return d, witness
+
+    def _sheet_distance(self, probe: _Probe, obj: SceneObject, tf: Any) -> tuple[float, FloatArray]:
+        """Signed distance (negative: depth) of a placed link to the top triangles of the
+        ground ``obj`` alone and its witness on the link: the deepest of coal's triangle
+        contacts, else the distance to the triangles."""
+        sheet = self._sheets.get(id(obj))
+        if sheet is None:
+            tris = obj.triangles
+            faces = np.arange(3 * len(tris), dtype=np.int64).reshape(-1, 3)
+            sheet = _bvh(tris.reshape(-1, 3), faces)
+            self._sheets[id(obj)] = sheet
+        d, witness = _signed_distance(probe.geometry, tf, sheet, _IDENTITY)
+        request = coal.CollisionRequest()
+        request.enable_contact = True
+        request.num_max_contacts = MAX_MESH_CONTACTS
+        result = coal.CollisionResult()
+        coal.collide(probe.geometry, tf, sheet, _IDENTITY, request, result)
+        for contact in result.getContacts():
+            depth = float(contact.penetration_depth)
+            if depth < d:
+                d, witness = depth, np.array(contact.pos, dtype=np.float64)
         return d, witness
 
     def signed_distance(

@@ -305,3 +305,34 @@ def test_json_answer_matches_domain(humanoid: AuditCharacter) -> None:
         "convex",
         "halfspace",
     ]
+
+
+def _holed_ground() -> AuditScene:
+    """A 10 x 10 m ground sheet at z = 0 with a 1 x 1 m square hole around the origin (debris
+    set into the ground leaves such holes), and a box 4 m off so that the sheet is not the
+    only component."""
+    outer = [[-5, -5], [5, -5], [5, 5], [-5, 5]]
+    inner = [[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]]
+    vertices = [[x, y, 0.0] for x, y in outer + inner]
+    faces = []
+    for k in range(4):  # the ring between the squares, two triangles per side
+        o0, o1, i0, i1 = k, (k + 1) % 4, 4 + k, 4 + (k + 1) % 4
+        faces += [[o0, o1, i1], [o0, i1, i0]]
+    sheet = trimesh.Trimesh(vertices, faces, process=False)
+    mesh = trimesh.util.concatenate([sheet, _box((3.5, 3.5, 0.0), (4.0, 4.0, 0.5))])
+    return AuditScene(mesh.vertices, mesh.faces)
+
+
+def test_nothing_is_under_the_ground_where_its_sheet_has_a_hole() -> None:
+    """A link below the ground's plane inside a hole of the sheet touches nothing; one
+    crossing the hole's rim is as deep as it reaches past the rim's triangles; one under the
+    sheet away from the hole is under the ground, at its true depth."""
+    scene = _holed_ground()
+    assert scene.objects[0].kind == "halfspace"
+    sphere = coal.Sphere(0.05)
+    d, _ = scene.signed_distance(sphere, np.eye(3), np.array([0.0, 0.0, -0.03]))
+    assert d > 0.0  # 0.45 m from the rim, 8 cm of it below z = 0
+    d, _ = scene.signed_distance(sphere, np.eye(3), np.array([0.53, 0.0, 0.0]))
+    assert -d == pytest.approx(0.05, abs=2e-3)  # centred on the sheet's plane, 3 cm over it
+    d, _ = scene.signed_distance(sphere, np.eye(3), np.array([2.0, 0.0, -0.03]))
+    assert -d == pytest.approx(0.08, abs=1e-3)
