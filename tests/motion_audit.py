@@ -305,6 +305,24 @@ def _probe(geometry: Any) -> _Probe:
 # -- scene --------------------------------------------------------------------------------------
 
 
+def _deepest_contact(
+    geometry: Any, tf: Any, bvh: Any, d: float, witness: FloatArray
+) -> tuple[float, FloatArray]:
+    """``d`` (m, negative: depth) and its ``witness`` (3,), or the deepest of coal's triangle
+    contacts between the placed link ``geometry`` and the triangle BVH when deeper (coal's
+    distance to a triangle soup is not the deepest triangle: every one is asked)."""
+    request = coal.CollisionRequest()
+    request.enable_contact = True
+    request.num_max_contacts = MAX_MESH_CONTACTS
+    result = coal.CollisionResult()
+    coal.collide(geometry, tf, bvh, _IDENTITY, request, result)
+    for contact in result.getContacts():
+        depth = float(contact.penetration_depth)
+        if depth < d:
+            d, witness = depth, np.array(contact.pos, dtype=np.float64)
+    return d, witness
+
+
 def _over(triangles: FloatArray, point: FloatArray, tolerance: float = 1e-9) -> bool:
     """Whether ``point`` (3,) lies over or under one of ``triangles`` (m, 3, 3) seen from
     above (x-y projection, within ``tolerance`` m)."""
@@ -503,16 +521,7 @@ class AuditScene:
             # against the sheet's own triangles there (it may still cross the hole's rim)
             d, witness = self._sheet_distance(probe, obj, tf)
         if obj.kind == "mesh" and d <= 0.0:
-            # coal's distance to a triangle soup is not the deepest triangle: ask every one
-            request = coal.CollisionRequest()
-            request.enable_contact = True
-            request.num_max_contacts = MAX_MESH_CONTACTS
-            result = coal.CollisionResult()
-            coal.collide(probe.geometry, tf, obj.geometry, _IDENTITY, request, result)
-            for contact in result.getContacts():
-                depth = float(contact.penetration_depth)
-                if depth < d:
-                    d, witness = depth, np.array(contact.pos, dtype=np.float64)
+            d, witness = _deepest_contact(probe.geometry, tf, obj.geometry, d, witness)
         if obj.kind == "mesh" and obj.solid:
             world = probe.points @ rotation.T + translation
             box = obj.bounds
@@ -540,16 +549,7 @@ class AuditScene:
             sheet = _bvh(tris.reshape(-1, 3), faces)
             self._sheets[id(obj)] = sheet
         d, witness = _signed_distance(probe.geometry, tf, sheet, _IDENTITY)
-        request = coal.CollisionRequest()
-        request.enable_contact = True
-        request.num_max_contacts = MAX_MESH_CONTACTS
-        result = coal.CollisionResult()
-        coal.collide(probe.geometry, tf, sheet, _IDENTITY, request, result)
-        for contact in result.getContacts():
-            depth = float(contact.penetration_depth)
-            if depth < d:
-                d, witness = depth, np.array(contact.pos, dtype=np.float64)
-        return d, witness
+        return _deepest_contact(probe.geometry, tf, sheet, d, witness)
 
     def signed_distance(
         self, geometry: Any, rotation: Any = None, translation: Any = None
