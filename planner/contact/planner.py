@@ -295,7 +295,7 @@ def plan_contact_motion(
     best: tuple[PlanResult[tuple[ContactState, ...]], FloatArray, PlanResult[Any]] | None = None
     attempts = 0
     stranded = False  # a walk stalled unable to release a leg it left behind
-    resume_gained = True  # the last resumed walk got further than the walks before it
+    resume_gained = True  # the best walk may be walked on (no resume from it gained nothing)
     for jitter in _RETRY_JITTERS:
         # A stuck walk is walked on from before where it stalled, with noisier foothold
         # choices; the best attempt (SOLVED, else the furthest along) is kept.
