@@ -323,22 +323,27 @@ def _deepest_contact(
     return d, witness
 
 
-def _over(triangles: FloatArray, point: FloatArray, tolerance: float = 1e-9) -> bool:
-    """Whether ``point`` (3,) lies over or under one of ``triangles`` (m, 3, 3) seen from
-    above (x-y projection, within ``tolerance`` m)."""
+def _barycentric_xy(triangles: FloatArray, points: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Barycentric coordinates (u, w), each (n, m), of ``points`` (n, 3) in the x-y
+    projections of non-vertical ``triangles`` (m, 3, 3): a point lies over or under triangle
+    j when u, w >= 0 and u + w <= 1."""
+    a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
+    e1, e2 = b - a, c - a
+    det = e1[:, 0] * e2[:, 1] - e2[:, 0] * e1[:, 1]
+    dx = points[:, None, 0] - a[None, :, 0]
+    dy = points[:, None, 1] - a[None, :, 1]
+    u = (dx * e2[None, :, 1] - e2[None, :, 0] * dy) / det
+    w = (e1[None, :, 0] * dy - dx * e1[None, :, 1]) / det
+    return u, w
+
+
+def _over(triangles: FloatArray, point: FloatArray) -> bool:
+    """Whether ``point`` (3,) lies over or under one of the horizontal ``triangles``
+    (m, 3, 3), seen from above."""
     if len(triangles) == 0:
         return False
-    a, b, c = triangles[:, 0, :2], triangles[:, 1, :2], triangles[:, 2, :2]
-    e1, e2, rel = b - a, c - a, np.asarray(point, dtype=np.float64)[:2] - a
-    det = e1[:, 0] * e2[:, 1] - e2[:, 0] * e1[:, 1]
-    valid = np.abs(det) > 1e-15
-    det = np.where(valid, det, 1.0)
-    u = (rel[:, 0] * e2[:, 1] - e2[:, 0] * rel[:, 1]) / det
-    w = (e1[:, 0] * rel[:, 1] - rel[:, 0] * e1[:, 1]) / det
-    scale = np.maximum(np.linalg.norm(e1, axis=1), np.linalg.norm(e2, axis=1))
-    slack = tolerance / np.maximum(scale, 1e-12)
-    inside = valid & (u >= -slack) & (w >= -slack) & (u + w <= 1.0 + slack)
-    return bool(np.any(inside))
+    u, w = _barycentric_xy(triangles, np.asarray(point, dtype=np.float64).reshape(1, 3))
+    return bool(np.any((u >= -1e-12) & (w >= -1e-12) & (u + w <= 1.0 + 1e-12)))
 
 
 @dataclass(frozen=True, eq=False)
@@ -492,13 +497,8 @@ class AuditScene:
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         if len(tris) == 0 or len(pts) == 0:
             return np.zeros(len(pts), dtype=bool)
-        a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
-        e1, e2 = b - a, c - a
-        det = e1[:, 0] * e2[:, 1] - e2[:, 0] * e1[:, 1]
-        dx = pts[:, None, 0] - a[None, :, 0]
-        dy = pts[:, None, 1] - a[None, :, 1]
-        u = (dx * e2[None, :, 1] - e2[None, :, 0] * dy) / det
-        w = (e1[None, :, 0] * dy - dx * e1[None, :, 1]) / det
+        a, e1, e2 = tris[:, 0], tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
+        u, w = _barycentric_xy(tris, pts)
         hit = (u >= -1e-12) & (w >= -1e-12) & (u + w <= 1.0 + 1e-12)
         z = a[None, :, 2] + u * e1[None, :, 2] + w * e2[None, :, 2]
         heights = np.where(hit & (z > pts[:, None, 2] + 1e-9), np.round(z, 6), np.inf)
