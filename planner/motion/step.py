@@ -53,10 +53,12 @@ FloatArray = NDArray[np.float64]
 class StepTiming:
     """How a step's COM was timed: ``method`` (rest to rest through one transition point:
     a single contact change starts and ends at rest), ``attractors`` per user attractor
-    whether it was honoured and why not."""
+    whether it was honoured and why not, ``brisk`` whether at a plan's brisk durations
+    (:func:`brisk_step_durations`) rather than the slow fallback."""
 
     method: str
     attractors: tuple[dict[str, object], ...]
+    brisk: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -95,6 +97,26 @@ def step_durations(
     return shift, swing / speed
 
 
+def brisk_step_durations(
+    character: Character, before: ContactState, after: ContactState, limb: str, speed: float
+) -> tuple[float, float]:
+    """The shortest each of the two phases may last (s) when the step is brisk, as a dynamic
+    plan's phases (:func:`planner.motion.sequence.dynamic_durations`): the swing
+    ``DYNAMIC_MIN_SWING_S`` or its distance at ``DYNAMIC_SWING_SPEED``, the other phase
+    ``DYNAMIC_SHIFT_S``, both at least ``DYNAMIC_END_S`` (a step starts and ends at rest), all
+    divided by ``speed``; the phase after the change at least ``END_BLEND_S`` (the blend into
+    the validated state)."""
+    frame = character.limb(limb).effector_frame
+    start = frame_placement(character.model, before.q, frame)[:3, 3]
+    end = frame_placement(character.model, after.q, frame)[:3, 3]
+    reach = float(np.linalg.norm(end - start))
+    swing = max(tuning.DYNAMIC_MIN_SWING_S, reach / tuning.DYNAMIC_SWING_SPEED)
+    shift = tuning.DYNAMIC_SHIFT_S
+    first, second = (swing, shift) if after.contact(limb) is not None else (shift, swing)
+    first, second = (max(d, tuning.DYNAMIC_END_S) / speed for d in (first, second))
+    return first, max(second, tuning.END_BLEND_S)
+
+
 def step_com(
     character: Character,
     data: OfflineData,
@@ -102,14 +124,18 @@ def step_com(
     after: ContactState,
     limb: str,
     timing: Timing,
+    brisk: bool = True,
 ) -> tuple[trajectory.PiecewiseBezier, FloatArray, StepTiming]:
     """The COM curve of a step, its (3,) phase times (s) and how it was timed: rest to rest
-    from the COM of ``before`` through the transition point to the COM of ``after``, each
-    phase lasting :func:`step_durations` or longer so that the acceleration stays under
-    ``STEP_MAX_ACCELERATION`` times ``timing.speed`` squared. The transition point is the
-    COM of ``after`` (the contact planner validated it), or the user's attractor for
-    transition 0 when it is balanced and reachable for both phases."""
-    durations = step_durations(character, before, after, limb, timing.speed)
+    from the COM of ``before`` through the transition point to the COM of ``after``.
+
+    ``brisk``: each phase lasts :func:`brisk_step_durations` or longer so that the peak
+    acceleration stays under the first of ``STEP_BRISK_ACCELERATIONS`` (times
+    ``timing.speed`` squared) whose curve passes Eq. 1 at every time :func:`build_step`
+    checks; when none does, or not ``brisk``, the slow fallback: :func:`step_durations`
+    and ``STEP_MAX_ACCELERATION``. The transition point is the COM of ``after`` (the contact
+    planner validated it), or the user's attractor for transition 0 when it is balanced and
+    reachable for both phases."""
     c0 = com_position(character.model, before.q)
     c1 = com_position(character.model, after.q)
     placed: list[FloatArray | None] | None = None
@@ -120,11 +146,22 @@ def step_com(
             [phase_kinematics(data, before), phase_kinematics(data, after)],
             timing.attractors,
         )
-    point = placed[0] if placed is not None and placed[0] is not None else c1
+    points = np.stack([c0, placed[0] if placed is not None and placed[0] is not None else c1, c1])
+    squared = timing.speed**2
+    if brisk:
+        phases = [contact_phase(character, before), contact_phase(character, after)]
+        durations = brisk_step_durations(character, before, after, limb, timing.speed)
+        for acceleration in tuning.STEP_BRISK_ACCELERATIONS:
+            curve, times = rest_to_rest(
+                points, min_durations=durations, max_acceleration=acceleration * squared
+            )
+            checked = trajectory.validate_dynamics(curve, phases, times, tuning.STEP_CHECKS)
+            if all(report.fraction_valid == 1.0 for report in checked):
+                return curve, times, StepTiming("rest_to_rest", tuple(attractors), brisk=True)
     curve, times = rest_to_rest(
-        np.stack([c0, point, c1]),
-        min_durations=durations,
-        max_acceleration=tuning.STEP_MAX_ACCELERATION * timing.speed**2,
+        points,
+        min_durations=step_durations(character, before, after, limb, timing.speed),
+        max_acceleration=tuning.STEP_MAX_ACCELERATION * squared,
     )
     return curve, times, StepTiming("rest_to_rest", tuple(attractors))
 
@@ -138,12 +175,16 @@ def step_spec(
     *,
     rate: float = 30.0,
     timing: Timing | None = None,
+    brisk: bool = True,
 ) -> tuple[MotionSpec, StepTiming]:
     """The two phases and the COM curve taking ``before`` to ``after``, which differ by
-    ``limb``'s contact (created when ``after`` holds it, broken otherwise)."""
+    ``limb``'s contact (created when ``after`` holds it, broken otherwise); ``brisk`` as in
+    :func:`step_com`."""
     model = character.model
     creating = after.contact(limb) is not None
-    curve, times, how = step_com(character, data, before, after, limb, timing or Timing())
+    curve, times, how = step_com(
+        character, data, before, after, limb, timing or Timing(), brisk=brisk
+    )
     frame = character.limb(limb).effector_frame
     start = frame_placement(model, before.q, frame)
     end = frame_placement(model, after.q, frame)
@@ -186,9 +227,17 @@ def build_step(
 ) -> BuiltStep:
     """Keyframes, phases and COM curve taking ``before`` to ``after`` in the scene
     ``scene_bvh`` (coal BVH) among static ``obstacles`` ((coal geometry, coal.Transform3s)
-    pairs), every keyframe checked (see :func:`build_motion`)."""
+    pairs), every keyframe checked (see :func:`build_motion`). The step is brisk
+    (:func:`step_com`); when that motion is not clean (a keyframe collides, a stance contact
+    slips, a phase is missing), it is built again on the slow fallback timing, which is
+    the answer then."""
     spec, how = step_spec(character, data, before, after, limb, rate=rate, timing=timing)
     motion = build_motion(character, scene_bvh, spec, obstacles=obstacles, until=until)
+    if how.brisk and motion.report.shortfall() is not None and not motion.report.cut_short:
+        spec, how = step_spec(
+            character, data, before, after, limb, rate=rate, timing=timing, brisk=False
+        )
+        motion = build_motion(character, scene_bvh, spec, obstacles=obstacles, until=until)
     times = np.array([spec.phases[0].t0, spec.phases[0].t1, spec.phases[1].t1])
     validity = trajectory.validate_dynamics(
         spec.com,
