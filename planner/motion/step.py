@@ -54,11 +54,13 @@ class StepTiming:
     """How a step's COM was timed: ``method`` (rest to rest through one transition point:
     a single contact change starts and ends at rest), ``attractors`` per user attractor
     whether it was honoured and why not, ``brisk`` whether at a plan's brisk durations
-    (:func:`brisk_step_durations`) rather than the slow fallback."""
+    (:func:`brisk_step_durations`) rather than the slow fallback, ``validity`` Eq. 1 per
+    phase at ``STEP_CHECKS`` times where already checked (empty otherwise)."""
 
     method: str
     attractors: tuple[dict[str, object], ...]
     brisk: bool = False
+    validity: tuple[trajectory.PhaseReport, ...] = ()
 
 
 @dataclass(frozen=True, slots=True)
@@ -157,7 +159,8 @@ def step_com(
             )
             checked = trajectory.validate_dynamics(curve, phases, times, tuning.STEP_CHECKS)
             if all(report.fraction_valid == 1.0 for report in checked):
-                return curve, times, StepTiming("rest_to_rest", tuple(attractors), brisk=True)
+                how = StepTiming("rest_to_rest", tuple(attractors), True, tuple(checked))
+                return curve, times, how
     curve, times = rest_to_rest(
         points,
         min_durations=step_durations(character, before, after, limb, timing.speed),
@@ -238,13 +241,11 @@ def build_step(
             character, data, before, after, limb, rate=rate, timing=timing, brisk=False
         )
         motion = build_motion(character, scene_bvh, spec, obstacles=obstacles, until=until)
-    times = np.array([spec.phases[0].t0, spec.phases[0].t1, spec.phases[1].t1])
-    validity = trajectory.validate_dynamics(
-        spec.com,
-        [contact_phase(character, before), contact_phase(character, after)],
-        times,
-        tuning.STEP_CHECKS,
-    )
+    validity = how.validity
+    if not validity:
+        times = np.array([spec.phases[0].t0, spec.phases[0].t1, spec.phases[1].t1])
+        phases = [contact_phase(character, before), contact_phase(character, after)]
+        validity = tuple(trajectory.validate_dynamics(spec.com, phases, times, tuning.STEP_CHECKS))
     swing_phase = 0 if spec.phases[0].swing is not None else 1
     transition = com_position(character.model, after.q)
-    return BuiltStep(motion, tuple(validity), swing_phase, transition, how)
+    return BuiltStep(motion, validity, swing_phase, transition, how)
