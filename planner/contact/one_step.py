@@ -17,7 +17,7 @@ from planner.contact.context import ContactContext, FailureReason
 from planner.contact.generation import ContactAttempt, break_contact, create_contact
 from planner.contact.state import ContactState
 from planner.contact.step_motion import StepMotion, step_motion
-from planner.motion import ComSegment, Keyframe, Phase
+from planner.motion import ComSegment, Keyframe, Phase, tuning
 from planner.motion.sequence import Timing
 from planner.termination import Termination, never
 
@@ -106,10 +106,12 @@ def twister_step(
 
     ``auto`` draws the order of the limbs from ``rng`` (so from the seed) and tries each
     once at most, in that order: a limb in contact is released, a free one placed on a random
-    nearby allowed surface; the first limb whose move succeeds without collision is used, else
-    the least colliding. What it tries depends on the seed alone, never on the time: ``cap``
-    (say a :class:`~planner.termination.Deadline`) is only a wall-clock cap, polled before each
-    limb after the first; when it stops ``auto`` with limbs left untried, the report says
+    nearby allowed surface; the first limb whose move is clean (no keyframe collides, no stance
+    contact slips over ``HOLD_TOLERANCE``) is used. A move none of whose motions is clean is
+    refused (``COLLISION`` when the cleanest collides, else ``MOTION_FAILED``). What it tries
+    depends on the seed alone, never on the time: ``cap`` (say a
+    :class:`~planner.termination.Deadline`) is only a wall-clock cap, polled before each limb
+    after the first; when it stops ``auto`` with limbs left untried, the report says
     ``clock_cap_hit`` (a replay may differ).
     """
     t_start = time.perf_counter()
@@ -171,12 +173,12 @@ def twister_step(
             last = replace(attempt, ok=False, reason=FailureReason.MOTION_FAILED)
             continue
         t_motion += time.perf_counter() - t0
-        colliding = int(motion.report["colliding_keyframes"])
-        if best is None or colliding < int(best[2].report["colliding_keyframes"]):
+        if best is None or _unclean(motion) < _unclean(best[2]):
             best = (kind, attempt, motion)
-        if colliding == 0:
+        if _unclean(motion) == (0, 0.0):
             break
-        entry["colliding_keyframes"] = colliding  # auto: try another limb
+        entry["colliding_keyframes"] = int(motion.report["colliding_keyframes"])  # auto: try
+        entry["max_hold_error"] = float(motion.report["max_hold_error"])  # another limb
     timings["contacts"] = t_contacts
     timings["motion"] = t_motion
     if best is None:
@@ -189,6 +191,14 @@ def twister_step(
         return failed(
             FailureReason.COLLISION,
             f"every motion found collides ({colliding} keyframes at best, {attempt.limb})",
+            attempt.limb,
+        )
+    slip = float(motion.report["max_hold_error"])
+    if slip > tuning.HOLD_TOLERANCE:  # every motion found lets a held contact slide
+        return failed(
+            FailureReason.MOTION_FAILED,
+            f"every motion found lets a stance contact slip ({slip * 1000:.0f} mm at best, "
+            f"tolerance {tuning.HOLD_TOLERANCE * 1000:.0f} mm, {attempt.limb})",
             attempt.limb,
         )
     timings["total"] = time.perf_counter() - t_start
@@ -213,3 +223,10 @@ def twister_step(
         kind,
         attempt.limb,
     )
+
+
+def _unclean(motion: StepMotion) -> tuple[int, float]:
+    """How far a step's motion is from clean: (colliding keyframes, m its stance contacts
+    slip beyond ``HOLD_TOLERANCE``); (0, 0.0) when clean, smaller is cleaner."""
+    slip = float(motion.report["max_hold_error"]) - tuning.HOLD_TOLERANCE
+    return int(motion.report["colliding_keyframes"]), max(0.0, slip)
