@@ -13,7 +13,8 @@ request goes through ``service.compute.run_ready`` (what a planning process runs
 serialisation) after one warm-up request per character (the registry loads
 characters and scenes on first use). Prints the median and p90 of the compute time per
 character and over all steps (each step run ``--repeats`` times, its fastest kept: other
-processes on the machine only ever add time); asserts nothing. Target (issue 15): 40
+processes on the machine only ever add time) and the median seconds of motion a solved step
+plays; asserts nothing. Target (issue 15): 40
 steps/s on 2 cores, so <= 50 ms per step.
 
 ``--record FILE`` writes every request and its answer (timings removed) to FILE;
@@ -90,6 +91,12 @@ def games(character: str, count: int, length: int, seed: int) -> list[dict[str, 
     return requests
 
 
+def _animated(answer: dict[str, Any]) -> float:
+    """s of motion an answer plays (0 for a refused move)."""
+    keyframes = answer.get("keyframes") or []
+    return float(keyframes[-1]["t"] - keyframes[0]["t"]) if keyframes else 0.0
+
+
 def difference(a: Any, b: Any, path: str = "") -> tuple[float, str]:
     """Largest absolute difference between two JSON values (inf where they differ in kind)."""
     if isinstance(a, bool) or isinstance(b, bool) or isinstance(a, str) or a is None:
@@ -124,6 +131,7 @@ def main() -> None:
     parser.add_argument("--compare", type=Path)
     args = parser.parse_args()
 
+    animated: dict[str, list[float]] = {}  # s of motion per solved step, per character
     home = Path(tempfile.mkdtemp(prefix="gecko-bench-step-"))
     settings = Settings(
         home=home,
@@ -145,6 +153,7 @@ def main() -> None:
                 elapsed = min(elapsed, run(item["request"])[1])
             times.append(elapsed * 1e3)
             by_character.setdefault(item["request"]["character"], []).append(elapsed * 1e3)
+            animated.setdefault(item["request"]["character"], []).append(_animated(answer))
             diff, path = difference(item["answer"], answer)
             if diff > worst:
                 worst, where = diff, f"step {index}{path}"
@@ -161,17 +170,24 @@ def main() -> None:
                 elapsed = min(elapsed, run(request)[1])
             times.append(elapsed * 1e3)
             by_character.setdefault(request["character"], []).append(elapsed * 1e3)
+            animated.setdefault(request["character"], []).append(_animated(answer))
             record.append({"request": request, "answer": answer})
         if args.record is not None:
             args.record.write_text(json.dumps(record))
         solved = sum(r["answer"]["status"] == "SOLVED" for r in record)
         print(f"{len(record)} steps, {solved} SOLVED")
-    print(f"{'character':12s} {'steps':>5s} {'med ms':>7s} {'p90 ms':>7s}")
+    print(f"{'character':12s} {'steps':>5s} {'med ms':>7s} {'p90 ms':>7s} {'motion s':>8s}")
     for character, values in by_character.items():
+        motion = [d for d in animated[character] if d > 0.0]
         print(
-            f"{character:12s} {len(values):5d} {statistics.median(values):7.1f} {_p90(values):7.1f}"
+            f"{character:12s} {len(values):5d} {statistics.median(values):7.1f} "
+            f"{_p90(values):7.1f} {statistics.median(motion) if motion else 0.0:8.2f}"
         )
-    print(f"{'all':12s} {len(times):5d} {statistics.median(times):7.1f} {_p90(times):7.1f}")
+    motion = [d for values in animated.values() for d in values if d > 0.0]
+    print(
+        f"{'all':12s} {len(times):5d} {statistics.median(times):7.1f} {_p90(times):7.1f} "
+        f"{statistics.median(motion) if motion else 0.0:8.2f}"
+    )
     print("target (issue 15): <= 50 ms median per step (40 steps/s on 2 cores)")
 
 
