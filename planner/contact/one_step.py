@@ -107,8 +107,9 @@ def twister_step(
     ``auto`` draws the order of the limbs from ``rng`` (so from the seed) and tries each
     once at most, in that order: a limb in contact is released, a free one placed on a random
     nearby allowed surface; the first limb whose move is clean (no keyframe collides, no stance
-    contact slips over ``HOLD_TOLERANCE``) is used. A move none of whose motions is clean is
-    refused (``COLLISION`` when the cleanest collides, else ``MOTION_FAILED``). What it tries
+    contact slips over ``HOLD_TOLERANCE``, the keyframe COM within ``STEP_COM_TOLERANCE`` of
+    its curve) is used. A move none of whose motions is clean is refused (``COLLISION`` when
+    the cleanest collides, else ``MOTION_FAILED``). What it tries
     depends on the seed alone, never on the time: ``cap`` (say a
     :class:`~planner.termination.Deadline`) is only a wall-clock cap, polled before each limb
     after the first; when it stops ``auto`` with limbs left untried, the report says
@@ -175,10 +176,11 @@ def twister_step(
         t_motion += time.perf_counter() - t0
         if best is None or _unclean(motion) < _unclean(best[2]):
             best = (kind, attempt, motion)
-        if _unclean(motion) == (0, 0.0):
+        if _unclean(motion) == (0, 0.0, 0.0):
             break
         entry["colliding_keyframes"] = int(motion.report["colliding_keyframes"])  # auto: try
         entry["max_hold_error"] = float(motion.report["max_hold_error"])  # another limb
+        entry["com_error_max"] = _com_error(motion)
     timings["contacts"] = t_contacts
     timings["motion"] = t_motion
     if best is None:
@@ -199,6 +201,14 @@ def twister_step(
             FailureReason.MOTION_FAILED,
             f"every motion found lets a stance contact slip ({slip * 1000:.0f} mm at best, "
             f"tolerance {tuning.HOLD_TOLERANCE * 1000:.0f} mm, {attempt.limb})",
+            attempt.limb,
+        )
+    lag = _com_error(motion)
+    if lag > tuning.STEP_COM_TOLERANCE:  # the body is not where the balanced COM was planned
+        return failed(
+            FailureReason.MOTION_FAILED,
+            f"in every motion found the body strays from its COM curve ({lag * 1000:.0f} mm "
+            f"at best, tolerance {tuning.STEP_COM_TOLERANCE * 1000:.0f} mm, {attempt.limb})",
             attempt.limb,
         )
     timings["total"] = time.perf_counter() - t_start
@@ -225,8 +235,15 @@ def twister_step(
     )
 
 
-def _unclean(motion: StepMotion) -> tuple[int, float]:
+def _com_error(motion: StepMotion) -> float:
+    """m, the largest distance of a step's keyframe COM from its COM curve."""
+    return float(motion.report["motion"]["com_error_max_m"])
+
+
+def _unclean(motion: StepMotion) -> tuple[int, float, float]:
     """How far a step's motion is from clean: (colliding keyframes, m its stance contacts
-    slip beyond ``HOLD_TOLERANCE``); (0, 0.0) when clean, smaller is cleaner."""
+    slip beyond ``HOLD_TOLERANCE``, m its keyframe COM strays beyond ``STEP_COM_TOLERANCE``);
+    (0, 0.0, 0.0) when clean, smaller is cleaner."""
     slip = float(motion.report["max_hold_error"]) - tuning.HOLD_TOLERANCE
-    return int(motion.report["colliding_keyframes"]), max(0.0, slip)
+    lag = _com_error(motion) - tuning.STEP_COM_TOLERANCE
+    return int(motion.report["colliding_keyframes"]), max(0.0, slip), max(0.0, lag)

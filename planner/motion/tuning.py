@@ -174,6 +174,11 @@ HOLD_TOLERANCE = 0.005
 TRIAL_COM_TOLERANCE = 0.02
 """m, the audit's bound on the keyframe COM's distance to its curve (99th percentile)."""
 
+STEP_COM_TOLERANCE = 0.02
+"""m, a Twister step whose keyframe COM strays further than this from its curve (anywhere)
+is not clean: the body is not where the balanced COM was planned. Measured on the Twister
+games' 20 seeds: 4 of 400 hands-and-feet moves strayed 20 to 118 mm, none elsewhere."""
+
 TRIAL_COM_LAG_SHARE = 0.1
 """A phase of a dynamic trial whose keyframe COM is further than ``TRIAL_COM_TOLERANCE``
 from the curve in more than this share of its keyframes is refused (the hexapod's wall at
