@@ -6,6 +6,7 @@ return the new state with its COM curve and keyframes, or a structured failure.
 
 from __future__ import annotations
 
+import itertools
 import time
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal
@@ -108,12 +109,12 @@ def twister_step(
     once at most, in that order: a limb in contact is released, a free one placed on a random
     nearby allowed surface; the first limb whose move is clean (no keyframe collides, no stance
     contact slips over ``HOLD_TOLERANCE``, the keyframe COM within ``STEP_COM_TOLERANCE`` of
-    its curve) is used. A move none of whose motions is clean is refused (``COLLISION`` when
-    the cleanest collides, else ``MOTION_FAILED``). What it tries
-    depends on the seed alone, never on the time: ``cap`` (say a
-    :class:`~planner.termination.Deadline`) is only a wall-clock cap, polled before each limb
-    after the first; when it stops ``auto`` with limbs left untried, the report says
-    ``clock_cap_hit`` (a replay may differ).
+    its curve, the root never faster than ``MAX_ROOT_SPEED`` between two keyframes) is used.
+    A move none of whose motions is clean is refused (``COLLISION`` when the cleanest
+    collides, else ``MOTION_FAILED``). What it tries depends on the seed alone, never on the
+    time: ``cap`` (say a :class:`~planner.termination.Deadline`) is only a wall-clock cap,
+    polled before each limb after the first; when it stops ``auto`` with limbs left untried,
+    the report says ``clock_cap_hit`` (a replay may differ).
     """
     t_start = time.perf_counter()
     timings: dict[str, float] = {}
@@ -176,11 +177,12 @@ def twister_step(
         t_motion += time.perf_counter() - t0
         if best is None or _unclean(motion) < _unclean(best[2]):
             best = (kind, attempt, motion)
-        if _unclean(motion) == (0, 0.0, 0.0):
+        if _unclean(motion) == (0, 0.0, 0.0, 0.0):
             break
         entry["colliding_keyframes"] = int(motion.report["colliding_keyframes"])  # auto: try
         entry["max_hold_error"] = float(motion.report["max_hold_error"])  # another limb
         entry["com_error_max"] = _com_error(motion)
+        entry["root_speed_max"] = _root_speed(motion)
     timings["contacts"] = t_contacts
     timings["motion"] = t_motion
     if best is None:
@@ -209,6 +211,14 @@ def twister_step(
             FailureReason.MOTION_FAILED,
             f"in every motion found the body strays from its COM curve ({lag * 1000:.0f} mm "
             f"at best, tolerance {tuning.STEP_COM_TOLERANCE * 1000:.0f} mm, {attempt.limb})",
+            attempt.limb,
+        )
+    speed = _root_speed(motion)
+    if speed > tuning.MAX_ROOT_SPEED:  # the body lags, then catches up in a jump
+        return failed(
+            FailureReason.MOTION_FAILED,
+            f"in every motion found the root jumps between two keyframes ({speed:.1f} m/s at "
+            f"best, at most {tuning.MAX_ROOT_SPEED:g} m/s, {attempt.limb})",
             attempt.limb,
         )
     timings["total"] = time.perf_counter() - t_start
@@ -240,10 +250,25 @@ def _com_error(motion: StepMotion) -> float:
     return float(motion.report["motion"]["com_error_max_m"])
 
 
-def _unclean(motion: StepMotion) -> tuple[int, float, float]:
+def _root_speed(motion: StepMotion) -> float:
+    """m/s, the fastest the root moves between two consecutive keyframes of a step."""
+    keys = motion.keyframes
+    return max(
+        (
+            float(np.linalg.norm(b.q[:3] - a.q[:3])) / max(b.t - a.t, 1e-9)
+            for a, b in itertools.pairwise(keys)
+        ),
+        default=0.0,
+    )
+
+
+def _unclean(motion: StepMotion) -> tuple[int, float, float, float]:
     """How far a step's motion is from clean: (colliding keyframes, m its stance contacts
-    slip beyond ``HOLD_TOLERANCE``, m its keyframe COM strays beyond ``STEP_COM_TOLERANCE``);
-    (0, 0.0, 0.0) when clean, smaller is cleaner."""
+    slip beyond ``HOLD_TOLERANCE``, m its keyframe COM strays beyond ``STEP_COM_TOLERANCE``,
+    m/s its root moves beyond ``MAX_ROOT_SPEED``); all zero when clean, smaller is
+    cleaner."""
     slip = float(motion.report["max_hold_error"]) - tuning.HOLD_TOLERANCE
     lag = _com_error(motion) - tuning.STEP_COM_TOLERANCE
-    return int(motion.report["colliding_keyframes"]), max(0.0, slip), max(0.0, lag)
+    jump = _root_speed(motion) - tuning.MAX_ROOT_SPEED
+    colliding = int(motion.report["colliding_keyframes"])
+    return colliding, max(0.0, slip), max(0.0, lag), max(0.0, jump)

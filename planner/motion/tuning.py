@@ -351,9 +351,9 @@ DYNAMIC_BUILDS_PER_PHASE = 0.15
 unclean phase every 2 to 11 phases at brisk durations."""
 
 MAX_ROOT_SPEED = 1.4
-"""m/s, the fastest the root may move between two keyframes of a plan's dynamic motion (the
-audit allows 5 cm per 30 Hz keyframe, 1.5 m/s): a body that lags its COM and then catches
-up is not played."""
+"""m/s, the fastest the root may move between two keyframes of a plan's dynamic motion or a
+Twister step (the audit allows 5 cm per 30 Hz keyframe, 1.5 m/s): a body that lags its COM
+and then catches up is not played."""
 
 # --- jumps (takeoff push, flight, landing) ----------------------------------------------------
 JUMP_ACCELERATION = 2.0 * 9.81

@@ -48,16 +48,19 @@ def test_twister_game(path: Path) -> None:
         assert_valid_step(m.ctx, m.before, r)
 
 
-def test_a_move_that_slips_or_strays_from_its_com_is_not_played(tmp_path: Path) -> None:
+@pytest.mark.parametrize("offset", [16, 19])
+def test_a_move_that_slips_strays_or_jumps_is_not_played(offset: int, tmp_path: Path) -> None:
     """'auto' takes the first clean move: one whose stance contacts slip over the tolerance,
-    or whose keyframe COM strays over 2 cm from its curve, is passed over like a colliding
-    one. The hands-and-feet game at its seed + 19 had a move (the 14th) whose right hand slid
-    16 mm on the mat with its COM 118 mm off its curve, then (that one passed over) one whose
-    COM strayed 35 mm; now every move played holds its contacts and its COM curve (the
-    builder's measures and the independent auditor's)."""
+    whose keyframe COM strays over 2 cm from its curve, or whose root jumps between two
+    keyframes is passed over like a colliding one. The hands-and-feet game at its seed + 19
+    had a move (the 14th) whose right hand slid 16 mm on the mat with its COM 118 mm off its
+    curve, then (that one passed over) one whose COM strayed 35 mm; at its seed + 16 a move
+    (the 17th) whose root jumped more than 5 cm between two keyframes. Now every move played
+    holds its contacts, its COM curve and its root (the builder's measures and the
+    independent auditor's)."""
     spec = json.loads((SCENARIOS / "humanoid_hands.json").read_text())
     path = tmp_path / "game.json"
-    path.write_text(json.dumps(dict(spec, seed=int(spec["seed"]) + 19)))
+    path.write_text(json.dumps(dict(spec, seed=int(spec["seed"]) + offset)))
     moves = play(path)
     assert sum(m.result.ok for m in moves) >= 18
     for m in moves:
@@ -68,6 +71,7 @@ def test_a_move_that_slips_or_strays_from_its_com_is_not_played(tmp_path: Path) 
             audit = audit_from_domain(m.ctx.character.id, m.ctx.scene, r.keyframes, r.phases, r.com)
             assert audit.stance_contact_error_m <= 0.005, audit.summary()
             assert audit.com_error_max_m <= 0.02, audit.summary()
+            assert audit.root_jumps == 0 and audit.pops == 0, audit.summary()
         else:
             assert m.result.failure is not None and m.result.state is m.before
 
