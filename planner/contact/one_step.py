@@ -20,6 +20,7 @@ from planner.contact.state import ContactState
 from planner.contact.step_motion import StepMotion, step_motion
 from planner.motion import ComSegment, Keyframe, Phase, tuning
 from planner.motion.sequence import Timing
+from planner.motion.types import root_speed
 from planner.termination import Termination, never
 
 FloatArray = NDArray[np.float64]
@@ -145,7 +146,7 @@ def twister_step(
             return failed(FailureReason.INVALID_ACTION, "a limb is required", None)
         plan = [(action.kind, action.limb)]
     last: ContactAttempt | None = None
-    best: tuple[str, ContactAttempt, StepMotion] | None = None
+    best: tuple[str, ContactAttempt, StepMotion, _StepQuality] | None = None
     t_contacts = t_motion = 0.0
     for kind, limb in plan:
         if last is not None and cap():
@@ -175,52 +176,30 @@ def twister_step(
             last = replace(attempt, ok=False, reason=FailureReason.MOTION_FAILED)
             continue
         t_motion += time.perf_counter() - t0
-        if best is None or _unclean(motion) < _unclean(best[2]):
-            best = (kind, attempt, motion)
-        if _unclean(motion) == (0, 0.0, 0.0, 0.0):
+        quality = _StepQuality.of(motion)
+        if best is None or quality.excess < best[3].excess:
+            best = (kind, attempt, motion, quality)
+        if quality.clean:
             break
-        entry["colliding_keyframes"] = int(motion.report["colliding_keyframes"])  # auto: try
-        entry["max_hold_error"] = float(motion.report["max_hold_error"])  # another limb
-        entry["com_error_max"] = _com_error(motion)
-        entry["root_speed_max"] = _root_speed(motion)
+        entry["colliding_keyframes"] = quality.colliding  # auto: try another limb
+        entry["max_hold_error"] = quality.hold_error
+        entry["com_error_max"] = quality.com_error
+        entry["root_speed_max"] = quality.root_speed
     timings["contacts"] = t_contacts
     timings["motion"] = t_motion
     if best is None:
         assert last is not None
         reason = last.reason or FailureReason.NOTHING_REACHABLE
         return failed(reason, last.message, last.limb)
-    kind, attempt, motion = best
-    colliding = int(motion.report["colliding_keyframes"])
-    if colliding > 0:  # every motion found sweeps through something: refuse, say where
+    kind, attempt, motion, quality = best
+    if quality.colliding > 0:  # every motion found sweeps through something: refuse, say where
         return failed(
             FailureReason.COLLISION,
-            f"every motion found collides ({colliding} keyframes at best, {attempt.limb})",
+            f"every motion found collides ({quality.colliding} keyframes at best, {attempt.limb})",
             attempt.limb,
         )
-    slip = float(motion.report["max_hold_error"])
-    if slip > tuning.HOLD_TOLERANCE:  # every motion found lets a held contact slide
-        return failed(
-            FailureReason.MOTION_FAILED,
-            f"every motion found lets a stance contact slip ({slip * 1000:.0f} mm at best, "
-            f"tolerance {tuning.HOLD_TOLERANCE * 1000:.0f} mm, {attempt.limb})",
-            attempt.limb,
-        )
-    lag = _com_error(motion)
-    if lag > tuning.STEP_COM_TOLERANCE:  # the body is not where the balanced COM was planned
-        return failed(
-            FailureReason.MOTION_FAILED,
-            f"in every motion found the body strays from its COM curve ({lag * 1000:.0f} mm "
-            f"at best, tolerance {tuning.STEP_COM_TOLERANCE * 1000:.0f} mm, {attempt.limb})",
-            attempt.limb,
-        )
-    speed = _root_speed(motion)
-    if speed > tuning.MAX_ROOT_SPEED:  # the body lags, then catches up in a jump
-        return failed(
-            FailureReason.MOTION_FAILED,
-            f"in every motion found the root jumps between two keyframes ({speed:.1f} m/s at "
-            f"best, at most {tuning.MAX_ROOT_SPEED:g} m/s, {attempt.limb})",
-            attempt.limb,
-        )
+    if not quality.clean:
+        return failed(FailureReason.MOTION_FAILED, quality.fault(attempt.limb), attempt.limb)
     timings["total"] = time.perf_counter() - t_start
     report = dict(motion.report)
     report["attempts"] = attempts
@@ -245,30 +224,59 @@ def twister_step(
     )
 
 
-def _com_error(motion: StepMotion) -> float:
-    """m, the largest distance of a step's keyframe COM from its COM curve."""
-    return float(motion.report["motion"]["com_error_max_m"])
+@dataclass(frozen=True, slots=True)
+class _StepQuality:
+    """What makes a step's motion clean or not: ``colliding`` keyframes, ``hold_error`` (m,
+    its stance contacts' largest slip), ``com_error`` (m, its keyframe COM's largest distance
+    from its curve), ``root_speed`` (m/s, the root's fastest move between two keyframes)."""
 
+    colliding: int
+    hold_error: float
+    com_error: float
+    root_speed: float
 
-def _root_speed(motion: StepMotion) -> float:
-    """m/s, the fastest the root moves between two consecutive keyframes of a step."""
-    keys = motion.keyframes
-    return max(
-        (
-            float(np.linalg.norm(b.q[:3] - a.q[:3])) / max(b.t - a.t, 1e-9)
-            for a, b in itertools.pairwise(keys)
-        ),
-        default=0.0,
-    )
+    @classmethod
+    def of(cls, motion: StepMotion) -> _StepQuality:
+        keys = motion.keyframes
+        return cls(
+            int(motion.report["colliding_keyframes"]),
+            float(motion.report["max_hold_error"]),
+            float(motion.report["motion"]["com_error_max_m"]),
+            max((root_speed(a, b) for a, b in itertools.pairwise(keys)), default=0.0),
+        )
 
+    @property
+    def excess(self) -> tuple[int, float, float, float]:
+        """(colliding keyframes, m of slip beyond ``HOLD_TOLERANCE``, m of COM error beyond
+        ``STEP_COM_TOLERANCE``, m/s beyond ``MAX_ROOT_SPEED``): all zero when clean, smaller
+        is cleaner."""
+        return (
+            self.colliding,
+            max(0.0, self.hold_error - tuning.HOLD_TOLERANCE),
+            max(0.0, self.com_error - tuning.STEP_COM_TOLERANCE),
+            max(0.0, self.root_speed - tuning.MAX_ROOT_SPEED),
+        )
 
-def _unclean(motion: StepMotion) -> tuple[int, float, float, float]:
-    """How far a step's motion is from clean: (colliding keyframes, m its stance contacts
-    slip beyond ``HOLD_TOLERANCE``, m its keyframe COM strays beyond ``STEP_COM_TOLERANCE``,
-    m/s its root moves beyond ``MAX_ROOT_SPEED``); all zero when clean, smaller is
-    cleaner."""
-    slip = float(motion.report["max_hold_error"]) - tuning.HOLD_TOLERANCE
-    lag = _com_error(motion) - tuning.STEP_COM_TOLERANCE
-    jump = _root_speed(motion) - tuning.MAX_ROOT_SPEED
-    colliding = int(motion.report["colliding_keyframes"])
-    return colliding, max(0.0, slip), max(0.0, lag), max(0.0, jump)
+    @property
+    def clean(self) -> bool:
+        return self.excess == (0, 0.0, 0.0, 0.0)
+
+    def fault(self, limb: str) -> str:
+        """Why the cleanest motion found (of ``limb``), collision-free, is not clean."""
+        _, slip, lag, jump = self.excess
+        if slip > 0.0:  # every motion found lets a held contact slide
+            return (
+                f"every motion found lets a stance contact slip ({self.hold_error * 1000:.0f} "
+                f"mm at best, tolerance {tuning.HOLD_TOLERANCE * 1000:.0f} mm, {limb})"
+            )
+        if lag > 0.0:  # the body is not where the balanced COM was planned
+            return (
+                f"in every motion found the body strays from its COM curve "
+                f"({self.com_error * 1000:.0f} mm at best, tolerance "
+                f"{tuning.STEP_COM_TOLERANCE * 1000:.0f} mm, {limb})"
+            )
+        assert jump > 0.0  # the body lags, then catches up in a jump
+        return (
+            f"in every motion found the root jumps between two keyframes "
+            f"({self.root_speed:.1f} m/s at best, at most {tuning.MAX_ROOT_SPEED:g} m/s, {limb})"
+        )

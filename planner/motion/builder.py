@@ -33,7 +33,7 @@ from planner.motion import tuning
 from planner.motion.checker import KeyframeCheck, KeyframeChecker
 from planner.motion.spec import MotionPhase, MotionSpec
 from planner.motion.tracker import StepTargets, WholeBodyTracker
-from planner.motion.types import ComSegment, Keyframe, Phase
+from planner.motion.types import ComSegment, Keyframe, Phase, root_speed
 from planner.termination import Termination, never
 
 FloatArray = NDArray[np.float64]
@@ -496,9 +496,7 @@ def _unclean(segment: _Segment, before: Keyframe | None, lag_matters: bool = Tru
         return f"the COM lags its curve by up to {float(lags.max()) * 1000:.0f} mm"
     keys = ([before] if before is not None else []) + segment.keyframes
     for a, b in itertools.pairwise(keys):
-        speed = float(np.linalg.norm(np.asarray(b.q[:3]) - np.asarray(a.q[:3]))) / max(
-            b.t - a.t, 1e-9
-        )
+        speed = root_speed(a, b)
         if speed > tuning.MAX_ROOT_SPEED:
             return f"the root moves at {speed:.1f} m/s between two keyframes"
     return None

@@ -82,6 +82,17 @@ class BuiltStep:
         return self.motion.swing_lifts[self.swing_phase]
 
 
+def _swing_reach(
+    character: Character, before: ContactState, after: ContactState, limb: str
+) -> float:
+    """m, how far ``limb``'s effector moves from its pose in ``before`` to its pose in
+    ``after``."""
+    frame = character.limb(limb).effector_frame
+    start = frame_placement(character.model, before.q, frame)[:3, 3]
+    end = frame_placement(character.model, after.q, frame)[:3, 3]
+    return float(np.linalg.norm(end - start))
+
+
 def step_durations(
     character: Character, before: ContactState, after: ContactState, limb: str, speed: float
 ) -> tuple[float, float]:
@@ -89,10 +100,8 @@ def step_durations(
     ``MIN_SWING_S`` or its distance at ``SWING_SPEED`` (whichever is longer), divided by
     ``speed``; the other phase ``STEP_MIN_SHIFT_S`` divided by ``speed`` but no shorter
     than the blend into the validated state (``END_BLEND_S``)."""
-    frame = character.limb(limb).effector_frame
-    start = frame_placement(character.model, before.q, frame)[:3, 3]
-    end = frame_placement(character.model, after.q, frame)[:3, 3]
-    swing = max(tuning.MIN_SWING_S, float(np.linalg.norm(end - start)) / tuning.SWING_SPEED)
+    reach = _swing_reach(character, before, after, limb)
+    swing = max(tuning.MIN_SWING_S, reach / tuning.SWING_SPEED)
     shift = max(tuning.STEP_MIN_SHIFT_S / speed, tuning.END_BLEND_S)
     if after.contact(limb) is not None:
         return swing / speed, shift
@@ -108,10 +117,7 @@ def brisk_step_durations(
     ``DYNAMIC_SHIFT_S``, both at least ``DYNAMIC_END_S`` (a step starts and ends at rest), all
     divided by ``speed``; the phase after the change at least ``END_BLEND_S`` (the blend into
     the validated state)."""
-    frame = character.limb(limb).effector_frame
-    start = frame_placement(character.model, before.q, frame)[:3, 3]
-    end = frame_placement(character.model, after.q, frame)[:3, 3]
-    reach = float(np.linalg.norm(end - start))
+    reach = _swing_reach(character, before, after, limb)
     swing = max(tuning.DYNAMIC_MIN_SWING_S, reach / tuning.DYNAMIC_SWING_SPEED)
     shift = tuning.DYNAMIC_SHIFT_S
     first, second = (swing, shift) if after.contact(limb) is not None else (shift, swing)

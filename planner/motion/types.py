@@ -27,6 +27,12 @@ class Keyframe:
     contacts: tuple[str, ...]
 
 
+def root_speed(a: Keyframe, b: Keyframe) -> float:
+    """m/s, the root's mean speed from keyframe ``a`` to keyframe ``b``."""
+    distance = float(np.linalg.norm(np.asarray(b.q[:3]) - np.asarray(a.q[:3])))
+    return distance / max(b.t - a.t, 1e-9)
+
+
 @dataclass(frozen=True, slots=True)
 class Phase:
     """A time interval [t0, t1] during which the contacts do not change."""
