@@ -7,6 +7,7 @@ Each step solves, over the configuration step ``dq`` (tangent space),
          limb neither held, swinging nor carried, an arm hanging free, at most
          FREE_LIMB_MAX_SPEED),
          the root's speed <= ROOT_LINEAR_SPEED, ROOT_ANGULAR_SPEED per axis of its frame
+         (ROOT_YAW_SPEED about its own z axis)
          (outside a jump's fast phases, ``StepTargets.root_bounded``),
          collision dampers against the scene and between body parts (``clearance``)
 
@@ -141,7 +142,7 @@ def speed_limits(model: Any, root_bounded: bool = False) -> FloatArray:
     """(nv,) rad/s: each joint's URDF velocity limit capped at ``MAX_JOINT_SPEED`` (joints
     without a limit get the cap). The free-flyer root (its local frame) is left unbounded,
     or with ``root_bounded`` held to ``ROOT_LINEAR_SPEED`` m/s and ``ROOT_ANGULAR_SPEED``
-    rad/s per axis."""
+    rad/s per axis (``ROOT_YAW_SPEED`` about its z axis)."""
     limits = np.array(model.velocityLimit, dtype=np.float64)
     root = int(model.joints[1].nv) if model.njoints > 1 and model.joints[1].nq == 7 else 0
     joints = limits[root:]
@@ -150,6 +151,7 @@ def speed_limits(model: Any, root_bounded: bool = False) -> FloatArray:
     if root:
         limits[:3] = tuning.ROOT_LINEAR_SPEED if root_bounded else np.inf
         limits[3:6] = tuning.ROOT_ANGULAR_SPEED if root_bounded else np.inf
+        limits[5] = tuning.ROOT_YAW_SPEED if root_bounded else np.inf
     return limits
 
 
