@@ -3,9 +3,7 @@
 Each step solves, over the configuration step ``dq`` (tangent space),
 
     min  sum of weighted task errors after the step  +  DAMPING |dq|^2
-    s.t. joint position limits, joint speeds <= min(URDF limit, MAX_JOINT_SPEED) (a
-         limb neither held, swinging nor carried, an arm hanging free, at most
-         FREE_LIMB_MAX_SPEED),
+    s.t. joint position limits, joint speeds <= min(URDF limit, MAX_JOINT_SPEED),
          the root's speed <= ROOT_LINEAR_SPEED, ROOT_ANGULAR_SPEED per axis of its frame
          (ROOT_YAW_SPEED about its own z axis)
          (outside a jump's fast phases, ``StepTargets.root_bounded``),
@@ -364,9 +362,6 @@ class WholeBodyTracker:
         self._lower_limit, self._upper_limit = terms.lower_limit, terms.upper_limit
         self._unbounded = np.full(model.nv, 1e30)  # the bound of an unbounded dq
         self._diagonal_terms = terms.diagonal_terms
-        self._free: dict[frozenset[str], IntArray] = {}
-        self._no_joints: IntArray = np.zeros(0, dtype=np.int64)
-        self._free_now = self._no_joints  # the free joints of the last objective
         self.q = pin.neutral(model)
         # kinematics stamps: of the last objective, of the last shape placements
         self._stamp = 0
@@ -614,29 +609,8 @@ class WholeBodyTracker:
             weight = tuning.POSTURE_COST * tuning.POSTURE_COST
         pull = pin.difference(model, aim, q)[self._root_nv :]
         linear[self._root_nv :] += weight * gain * pull
-        # free limbs (neither held, swinging nor carried) move slowly (:meth:`_bounds`) but
-        # where a jump's crouch leads them
-        self._free_now = self._no_joints if targets.posture_led else self._free_joints(targets)
         self.scene.set_phase(frozenset(skipped), light)
         return StepQP(hessian, linear, held)
-
-    def _free_joints(self, targets: StepTargets) -> IntArray:
-        """Tangent indices (k,) of the joints only limbs that ``targets`` neither holds,
-        swings nor carries move (a joint shared with a busy limb, the hip of a seat and a
-        foot, is not free; memoised per set of busy limbs)."""
-        busy = frozenset(
-            [limb for limb, _ in targets.stance]
-            + [limb for limb, _ in targets.carried]
-            + ([targets.swing[0]] if targets.swing is not None else [])
-        )
-        hit = self._free.get(busy)
-        if hit is None:
-            limbs = self.character.limbs
-            used = {int(i) for limb in limbs if limb.name in busy for i in limb.idx_v}
-            idle = {int(i) for limb in limbs if limb.name not in busy for i in limb.idx_v}
-            hit = np.array(sorted(idle - used), dtype=np.int64)
-            self._free[busy] = hit
-        return hit
 
     def _tilt_bound(self) -> tuple[FloatArray, FloatArray] | None:
         """The row (G (1, nv), h (1,)) keeping the trunk's tilt (its z axis from the world's)
@@ -683,10 +657,9 @@ class WholeBodyTracker:
         self, dt: float, dampers: bool, root_bounded: bool
     ) -> tuple[FloatArray, FloatArray]:
         """``G dq <= h`` at the kinematics of the last :meth:`objective`: joint position
-        limits (pink's ``ConfigurationLimit`` rows), speed limits (``VelocityLimit``; the
-        joints of a limb neither held, swinging nor carried at most ``FREE_LIMB_MAX_SPEED``),
-        then with ``dampers`` the scene and self-collision dampers (``clearance``) and the
-        trunk's tilt bound (:meth:`_tilt_bound`)."""
+        limits (pink's ``ConfigurationLimit`` rows), speed limits (``VelocityLimit``), then
+        with ``dampers`` the scene and self-collision dampers (``clearance``) and the trunk's
+        tilt bound (:meth:`_tilt_bound`)."""
         q = self.q
         gain = self._config_gain
         h_config = np.concatenate(
@@ -696,10 +669,6 @@ class WholeBodyTracker:
             ]
         )
         speeds = self._speeds[root_bounded]
-        if self._free_now.size:  # the free limbs' bound of :meth:`_bounds`
-            speeds = speeds.copy()
-            free = np.isin(self._speed_index[root_bounded], self._free_now)
-            speeds[free] = np.minimum(speeds[free], tuning.FREE_LIMB_MAX_SPEED)
         g_blocks = [self._g_limits[root_bounded]]
         h_blocks = [h_config, dt * speeds, dt * speeds]
         if dampers:
@@ -719,13 +688,6 @@ class WholeBodyTracker:
         speed = self._speed_index[root_bounded]
         upper[speed] = step
         lower[speed] = -step
-        free = self._free_now
-        if free.size:
-            # an arm hanging free swings no faster than FREE_LIMB_MAX_SPEED: it may help the
-            # COM, not be flung out and back in a few frames
-            cap = dt * tuning.FREE_LIMB_MAX_SPEED
-            upper[free] = np.minimum(upper[free], cap)
-            lower[free] = np.maximum(lower[free], -cap)
         config = self._config
         reach = gain * pin.difference(model, q, self._upper_limit)[config]
         upper[config] = np.minimum(upper[config], reach)

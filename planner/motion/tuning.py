@@ -95,12 +95,6 @@ alone leaves the body free to crouch and fold; the planned states say how tall i
 POSTURE_COST = 1.0
 """Joints pulled toward the phase's planned posture: arms hang naturally, knees unfold."""
 
-FREE_LIMB_MAX_SPEED = 3.0
-"""rad/s, the fastest a joint of a limb neither holding a contact nor swinging moves (an arm
-hanging free; a human arm swings at 2 to 3 rad/s walking): a QP bound. At the joint's own
-limit, Talos flung an arm up to horizontal and back in 0.15 s stepping up stairs, to serve
-the COM."""
-
 POSTURE_MAX_ERROR = 0.1
 """rad: each joint's posture target is at most this far from where the joint is (the
 posture error saturated like the COM's and the swing's): a posture far from the current one

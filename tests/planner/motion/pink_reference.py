@@ -53,23 +53,13 @@ class PinkReference:
                 gain=tuning.TASK_GAIN,
             )
         self.dampers = dampers
-
-    def velocity_limit(self, targets: StepTargets) -> VelocityLimit:
-        """pink's speed limits of the step: the model's, and the joints of every limb the
-        step neither holds, swings nor carries (shared with none that it does) at most
-        ``FREE_LIMB_MAX_SPEED`` unless the posture leads (a jump's crouch)."""
-        model = self.tracker.model
-        limit = np.array(speed_limits(model, root_bounded=targets.root_bounded))
-        if not targets.posture_led:
-            busy = {limb for limb, _ in targets.stance} | {limb for limb, _ in targets.carried}
-            if targets.swing is not None:
-                busy.add(targets.swing[0])
-            limbs = self.tracker.character.limbs
-            used = {int(i) for limb in limbs if limb.name in busy for i in limb.idx_v}
-            for limb in limbs:
-                for i in set(map(int, limb.idx_v)) - used:
-                    limit[i] = min(limit[i], tuning.FREE_LIMB_MAX_SPEED)
-        return VelocityLimit(model, limit)
+        self.limits = {
+            bounded: [
+                ConfigurationLimit(model),
+                VelocityLimit(model, speed_limits(model, root_bounded=bounded)),
+            ]
+            for bounded in (False, True)
+        }
 
     def tasks(self, q: Any, targets: StepTargets, share: float = 1.0) -> list[Any]:
         """pink's tasks of the step at ``q`` (nq,) toward ``targets`` (the configuration
@@ -130,7 +120,7 @@ class PinkReference:
     ) -> qpsolvers.Problem:
         """pink's ``build_ik`` problem of the step (rigid limbs' stance as equalities)."""
         tasks = self.tasks(q, targets, share)
-        limits = [ConfigurationLimit(self.tracker.model), self.velocity_limit(targets)]
+        limits = list(self.limits[targets.root_bounded])
         if dampers:
             limits += list(self.dampers)
         problem = build_ik(self.configuration, tasks, dt, damping=tuning.DAMPING, limits=limits)
