@@ -230,9 +230,8 @@ def test_keyframes_pass_the_independent_audit(planned) -> None:  # type: ignore[
 
 def test_the_trunk_never_swivels(planned) -> None:  # type: ignore[no-untyped-def]
     """Between two keyframes the trunk turns about its own vertical axis at most
-    ``ROOT_YAW_SPEED`` (1.5 rad/s): it does not snap from side to side to help a foot reach
-    (it did at 4.3 rad/s, wagging 20 to 31 degrees either way, on rubble where the planned
-    states turn at most 9 degrees)."""
+    ``ROOT_YAW_SPEED`` (2.5 rad/s): it does not snap from side to side to help a foot reach
+    (it did at 4.3 rad/s on rubble, where the planned states turn at most 9 degrees)."""
     _, result, *_ = planned
     keyframes = result.value.motion.keyframes
     for a, b in itertools.pairwise(keyframes):
