@@ -5,8 +5,8 @@ Each step solves, over the configuration step ``dq`` (tangent space),
     min  sum of weighted task errors after the step  +  DAMPING |dq|^2
     s.t. joint position limits, joint speeds <= min(URDF limit, MAX_JOINT_SPEED),
          the root's speed <= ROOT_LINEAR_SPEED, ROOT_ANGULAR_SPEED per axis of its frame
-         (ROOT_YAW_SPEED about its own z axis)
-         (outside a jump's fast phases, ``StepTargets.root_bounded``),
+         but ROOT_YAW_SPEED about its z axis (outside a jump's fast phases,
+         ``StepTargets.root_bounded``),
          collision dampers against the scene and between body parts (``clearance``)
 
 with the tasks, by cost: stance contacts held (dominant), the COM on its curve, the swing
@@ -148,8 +148,8 @@ def speed_limits(model: Any, root_bounded: bool = False) -> FloatArray:
     limits[root:] = np.minimum(joints, tuning.MAX_JOINT_SPEED)
     if root:
         limits[:3] = tuning.ROOT_LINEAR_SPEED if root_bounded else np.inf
-        limits[3:6] = tuning.ROOT_ANGULAR_SPEED if root_bounded else np.inf
-        limits[5] = tuning.ROOT_YAW_SPEED if root_bounded else np.inf
+        turning = (tuning.ROOT_ANGULAR_SPEED,) * 2 + (tuning.ROOT_YAW_SPEED,)
+        limits[3:6] = turning if root_bounded else np.inf
     return limits
 
 

@@ -63,8 +63,9 @@ ROOT_YAW_SPEED = 2.5
 """rad/s, the root's turning speed about its own z axis outside jumps (the trunk's task
 leaves its yaw free): at ``ROOT_ANGULAR_SPEED`` the quadruped's trunk snapped from side to
 side at 4.3 rad/s to help a foot reach over rubble, where the planned states turn at most 9
-degrees; bounded, it turns at 2.8 rad/s at most and HyQ's stance contacts slip less (1.2 mm
-instead of 2.3 on hpp_rubbles_4). Not lower: at 1.5 rad/s the humanoid's Twister break of a
+degrees; bounded, its heading changes at 2.8 rad/s at most between two keyframes (the bound
+is on the trunk's own axis) and HyQ's stance contacts slip less (1.2 mm instead of 2.3 on
+hpp_rubbles_4). Not lower: at 1.5 rad/s the humanoid's Twister break of a
 foot on the mat slipped its stance foot over 5 mm at brisk timing (the yaw helps it hold)
 and fell back to the slow one, 2.7 s instead of 1.35 s."""
 
