@@ -566,6 +566,20 @@ def _track_segment(
     return out
 
 
+def _entry_velocity(model: Any, segments: Sequence[_Segment]) -> FloatArray | None:
+    """(nv,) the motion's velocity at its last keyframe so far: the step between its last
+    two keyframes over their interval (rad/s, m/s in the root's frame); None before two."""
+    last: list[Keyframe] = []
+    for segment in reversed(segments):
+        last = list(segment.keyframes[-2:]) + last
+        if len(last) >= 2:
+            break
+    if len(last) < 2:
+        return None
+    a, b = last[-2], last[-1]
+    return np.asarray(pin.difference(model, a.q, b.q) / max(b.t - a.t, 1e-9), dtype=np.float64)
+
+
 def _blend_into(
     checker: KeyframeChecker,
     targets: _Targets,
@@ -731,6 +745,7 @@ def _build_motion(
         best: _Segment | None = None
         best_attempt = attempts[0]
         best_top = 0.0
+        entry = _entry_velocity(tracker.model, segments)
         for n, (lift, guarded, clearing) in enumerate(attempts):
             if n and flight:
                 retried += 1
@@ -743,7 +758,7 @@ def _build_motion(
                     targets.clearings[k] = _clearing_top(targets, checker, k)
                 if not guarded:
                     targets.unguarded.add(k)
-            tracker.reset()
+            tracker.reset(entry)
             segment = _track_segment(tracker, checker, targets, q, times, previous, until)
             if best is None or segment.score < best.score:
                 best, best_attempt = segment, (lift, guarded, clearing)

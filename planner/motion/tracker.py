@@ -6,7 +6,8 @@ Each step solves, over the configuration step ``dq`` (tangent space),
     s.t. joint position limits, joint speeds <= min(URDF limit, MAX_JOINT_SPEED),
          the root's speed <= ROOT_LINEAR_SPEED, ROOT_ANGULAR_SPEED per axis of its frame
          but ROOT_YAW_SPEED about its z axis (outside a jump's fast phases,
-         ``StepTargets.root_bounded``),
+         ``StepTargets.root_bounded``), and there the free limbs' joint accelerations
+         <= FREE_LIMB_ACCELERATION (pink's ``AccelerationLimit`` rows),
          collision dampers against the scene and between body parts (``clearance``)
 
 with the tasks, by cost: stance contacts held (dominant), the COM on its curve, the swing
@@ -58,6 +59,7 @@ from planner.motion.clearance import (
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
 
 _UPRIGHT = math.cos(1e-3)  # a trunk target this close to upright is upright
 _COS_TILT_WATCH = math.cos(tuning.TILT_WATCH)
@@ -187,6 +189,22 @@ def _saturated(here: FloatArray, target: FloatArray, reach: float) -> FloatArray
     return np.asarray(here + gap * (reach / norm), dtype=np.float64)
 
 
+def _position_limited(model: Any) -> BoolArray:
+    """(nv,) whether each tangent index belongs to a joint with finite position limits (the
+    joints that must brake before them; pink's ``AccelerationLimit`` test)."""
+    out = np.zeros(model.nv, dtype=bool)
+    lower = np.asarray(model.lowerPositionLimit)
+    upper = np.asarray(model.upperPositionLimit)
+    limited = np.asarray(model.hasConfigurationLimit(), dtype=bool)
+    for joint in model.joints:
+        if joint.idx_v < 0 or joint.nv == 0:
+            continue
+        q = slice(joint.idx_q, joint.idx_q + joint.nq)
+        if limited[q].all() and (upper[q] < 1e20).all() and (upper[q] > lower[q] + 1e-10).all():
+            out[joint.idx_v : joint.idx_v + joint.nv] = True
+    return out
+
+
 @dataclass(frozen=True, slots=True, eq=False)
 class _CharacterTerms:
     """What a tracker needs of its character that no step changes, computed once per
@@ -215,6 +233,8 @@ class _CharacterTerms:
     lower_limit: FloatArray
     upper_limit: FloatArray
     diagonal_terms: FloatArray
+    limb_columns: dict[str, frozenset[int]]
+    braking: BoolArray
 
 
 _TERMS: dict[int, tuple[Character, _CharacterTerms]] = {}
@@ -297,6 +317,8 @@ def _character_terms(character: Character) -> _CharacterTerms:
         lower_limit=_read_only(np.array(model.lowerPositionLimit, dtype=np.float64)),
         upper_limit=_read_only(np.array(model.upperPositionLimit, dtype=np.float64)),
         diagonal_terms=_read_only(np.diag(diagonal)),
+        limb_columns={limb.name: frozenset(int(i) for i in limb.idx_v) for limb in character.limbs},
+        braking=_read_only(_position_limited(model)),
     )
     if len(_TERMS) >= 64:
         _TERMS.clear()
@@ -362,7 +384,16 @@ class WholeBodyTracker:
         self._lower_limit, self._upper_limit = terms.lower_limit, terms.upper_limit
         self._unbounded = np.full(model.nv, 1e30)  # the bound of an unbounded dq
         self._diagonal_terms = terms.diagonal_terms
+        self._limb_columns = terms.limb_columns
+        self._braking = terms.braking
         self.q = pin.neutral(model)
+        # the velocity (nv,) of the last control step (rad/s, m/s in the root's frame): the
+        # free limbs' acceleration bound counts from it
+        self.velocity = np.zeros(model.nv)
+        # the free limbs' tangent indices of the last objective, memoised per set of limbs
+        # in use
+        self._free: IntArray = np.zeros(0, dtype=np.int64)
+        self._free_of: dict[frozenset[str], IntArray] = {}
         # kinematics stamps: of the last objective, of the last shape placements
         self._stamp = 0
         self._placed = -1
@@ -395,11 +426,32 @@ class WholeBodyTracker:
             self._trunk_cache[key] = cached
         return cached
 
-    def reset(self) -> None:
+    def reset(self, velocity: FloatArray | None = None) -> None:
         """Forget what earlier steps left (remembered witnesses, the lift-off depths): the
-        next step starts a fresh track."""
+        next step starts a fresh track, from ``velocity`` (nv,) (the motion's velocity where
+        the track starts; at rest when None)."""
         self.scene.memory.clear()
         self._lift_off = {}
+        if velocity is None:
+            self.velocity = np.zeros(self.model.nv)
+        else:
+            self.velocity = np.array(velocity, dtype=np.float64)
+
+    def _free_columns(self, in_use: frozenset[str]) -> IntArray:
+        """The tangent indices (sorted) of the joints of the limbs not ``in_use`` (holding a
+        contact, swinging or carried) that no limb in use moves as well (a humanoid's seat
+        shares its leg's joints)."""
+        hit = self._free_of.get(in_use)
+        if hit is None:
+            free: set[int] = set()
+            for limb, columns in self._limb_columns.items():
+                if limb not in in_use:
+                    free |= columns
+            for limb in in_use:
+                free -= self._limb_columns[limb]
+            hit = _read_only(np.array(sorted(free), dtype=np.int64))
+            self._free_of[in_use] = hit
+        return hit
 
     def _swing_security(self, limbs: Sequence[str]) -> dict[int, float]:
         """Security distance (m) of each shape of the swinging (or carried) ``limbs``'
@@ -441,16 +493,25 @@ class WholeBodyTracker:
             q = self._onto_com(q, targets.com)
         qp = self.objective(q, targets, share)
         rigid = [limb for limb, _ in targets.stance] if targets.rigid_stance else []
-        attempts = [(True, True), (False, True)]
+        # (dampers, contacts hard, free limbs' acceleration bounded): the acceleration bound
+        # yields first (a hand let go of a wall must get off it), then the dampers
+        attempts = [(True, True, True)]
+        if self._free.size and targets.root_bounded:
+            attempts.append((True, True, False))
+        attempts.append((False, True, False))
         if rigid:
-            attempts += [(True, False), (False, False)]
-        for dampers, hard in attempts:
-            velocity = self._solve(qp, dt, dampers, targets.root_bounded, rigid if hard else [])
+            attempts += [(True, False, False), (False, False, False)]
+        for dampers, hard, smooth in attempts:
+            velocity = self._solve(
+                qp, dt, dampers, targets.root_bounded, rigid if hard else [], smooth
+            )
             if velocity is None:
                 self.fallbacks += 1
                 continue
+            self.velocity = velocity
             q = np.asarray(pin.integrate(self.model, q, velocity * dt), dtype=np.float64)
             return self._onto_com(q, targets.com) if targets.exact_com else q
+        self.velocity = np.zeros(self.model.nv)
         return np.array(q, dtype=np.float64)
 
     def hold_stance(
@@ -572,6 +633,8 @@ class WholeBodyTracker:
             else:
                 skipped |= self.effectors[targets.swing[0]]
         light = self._swing_security(guarded)
+        in_use = [limb for limb, _ in targets.stance] + [limb for limb, _ in moving]
+        self._free = self._free_columns(frozenset(in_use))
         com = np.array(data.com[0])
         goal = _saturated(com, np.asarray(targets.com, dtype=np.float64), targets.com_reach)
         rows.append(tuning.COM_COST * jcom)
@@ -654,12 +717,13 @@ class WholeBodyTracker:
         return np.asarray(-pin.Jlog6(target.actInv(here)) @ local, dtype=np.float64)
 
     def inequalities(
-        self, dt: float, dampers: bool, root_bounded: bool
+        self, dt: float, dampers: bool, root_bounded: bool, smooth: bool = True
     ) -> tuple[FloatArray, FloatArray]:
         """``G dq <= h`` at the kinematics of the last :meth:`objective`: joint position
-        limits (pink's ``ConfigurationLimit`` rows), speed limits (``VelocityLimit``), then
-        with ``dampers`` the scene and self-collision dampers (``clearance``) and the trunk's
-        tilt bound (:meth:`_tilt_bound`)."""
+        limits (pink's ``ConfigurationLimit`` rows), speed limits (``VelocityLimit``), with
+        ``smooth`` the free limbs' acceleration bound (``AccelerationLimit``,
+        :meth:`_acceleration_window`), then with ``dampers`` the scene and self-collision
+        dampers (``clearance``) and the trunk's tilt bound (:meth:`_tilt_bound`)."""
         q = self.q
         gain = self._config_gain
         h_config = np.concatenate(
@@ -671,15 +735,73 @@ class WholeBodyTracker:
         speeds = self._speeds[root_bounded]
         g_blocks = [self._g_limits[root_bounded]]
         h_blocks = [h_config, dt * speeds, dt * speeds]
+        window = None
+        if smooth:
+            limits = self._limit_bounds(dt, root_bounded)
+            window = self._acceleration_window(dt, root_bounded, *limits)
+        if window is not None:
+            columns, low, high = window
+            rows = np.zeros((len(columns), self.model.nv))
+            rows[np.arange(len(columns)), columns] = 1.0
+            g_blocks.append(np.vstack([rows, -rows]))
+            h_blocks.append(np.concatenate([high, -low]))
         if dampers:
             for g, h in self._damper_rows():
                 g_blocks.append(g)
                 h_blocks.append(h)
         return np.vstack(g_blocks), np.concatenate(h_blocks)
 
-    def _bounds(self, dt: float, root_bounded: bool) -> tuple[FloatArray, FloatArray]:
-        """The joint position and speed limit rows of :meth:`inequalities` (rows of the
-        identity) as bounds on dq: lower (nv,), upper (nv,), +-1e30 where unbounded."""
+    def _bounds(
+        self, dt: float, root_bounded: bool, smooth: bool = True
+    ) -> tuple[FloatArray, FloatArray]:
+        """The joint position, speed and (``smooth``) acceleration limit rows of
+        :meth:`inequalities` (rows of the identity) as bounds on dq: lower (nv,), upper (nv,),
+        +-1e30 where unbounded."""
+        lower, upper = self._limit_bounds(dt, root_bounded)
+        window = self._acceleration_window(dt, root_bounded, lower, upper) if smooth else None
+        if window is not None:
+            columns, low, high = window
+            lower[columns] = np.maximum(lower[columns], low)
+            upper[columns] = np.minimum(upper[columns], high)
+        return lower, upper
+
+    def _acceleration_window(
+        self, dt: float, root_bounded: bool, lower: FloatArray, upper: FloatArray
+    ) -> tuple[IntArray, FloatArray, FloatArray] | None:
+        """The free limbs' acceleration bound on dq (pink's ``AccelerationLimit`` rows,
+        braking at half the bound): their tangent indices (k,), and per index the lowest and
+        highest step (k,), within ``FREE_LIMB_ACCELERATION`` dt^2 of the last step's
+        (``velocity`` dt) and slow enough to brake before a position limit. Joints whose
+        window misses their position and speed bounds ``lower``, ``upper`` (nv,) are left
+        out (those bounds come first); None when the root is unbounded (a jump's fast phase)
+        or no limb is free."""
+        columns = self._free
+        if not root_bounded or columns.size == 0:
+            return None
+        reach = tuning.FREE_LIMB_ACCELERATION * dt * dt
+        previous = self.velocity[columns] * dt
+        braking = self._braking[columns]
+        up = pin.difference(self.model, self.q, self._upper_limit)[columns]
+        down = pin.difference(self.model, self._lower_limit, self.q)[columns]
+        # braking at half the bound (pink brakes at the bound): the position limit rows
+        # (``ConfigurationLimit``, a share of the room per step) then slow the last stretch
+        # at the bound at most; at the whole bound they cut in while the joint still moved
+        # fast and stopped a Talos arm at 47 rad/s^2
+        brake = tuning.FREE_LIMB_ACCELERATION
+        up = np.where(braking, dt * np.sqrt(brake * np.maximum(up, 0.0)), np.inf)
+        down = np.where(braking, dt * np.sqrt(brake * np.maximum(down, 0.0)), np.inf)
+        high = np.minimum(reach + previous, up)
+        low = -np.minimum(reach - previous, down)
+        meets = (np.maximum(low, lower[columns]) <= np.minimum(high, upper[columns])) & (
+            low <= high
+        )
+        if not meets.any():
+            return None
+        return columns[meets], low[meets], high[meets]
+
+    def _limit_bounds(self, dt: float, root_bounded: bool) -> tuple[FloatArray, FloatArray]:
+        """The joint position and speed limit rows of :meth:`inequalities` as bounds on dq:
+        lower (nv,), upper (nv,), +-1e30 where unbounded."""
         q, model = self.q, self.model
         gain = self._config_gain
         step = dt * self._speeds[root_bounded]
@@ -728,19 +850,31 @@ class WholeBodyTracker:
         return out
 
     def problem(
-        self, qp: StepQP, dt: float, dampers: bool, root_bounded: bool, rigid: Sequence[str]
+        self,
+        qp: StepQP,
+        dt: float,
+        dampers: bool,
+        root_bounded: bool,
+        rigid: Sequence[str],
+        smooth: bool = True,
     ) -> qpsolvers.Problem:
         """The QP of the step over dq: the cost ``qp``, :meth:`inequalities`, and the
         ``rigid`` limbs' stance held exactly, ``J_c dq = -e_c`` (position rows only for a
         point contact)."""
-        g, h, a, b = self._constraints(qp, dt, dampers, root_bounded, rigid)
+        g, h, a, b = self._constraints(qp, dt, dampers, root_bounded, rigid, smooth)
         return qpsolvers.Problem(qp.hessian, qp.linear, g, h, a, b)
 
     def _constraints(
-        self, qp: StepQP, dt: float, dampers: bool, root_bounded: bool, rigid: Sequence[str]
+        self,
+        qp: StepQP,
+        dt: float,
+        dampers: bool,
+        root_bounded: bool,
+        rigid: Sequence[str],
+        smooth: bool = True,
     ) -> tuple[FloatArray, FloatArray, FloatArray | None, FloatArray | None]:
         """G, h, A, b of :meth:`problem` (A, b None without rigid limbs)."""
-        g, h = self.inequalities(dt, dampers, root_bounded)
+        g, h = self.inequalities(dt, dampers, root_bounded, smooth)
         if not rigid:
             return g, h, None, None
         keeps = [self._rigid_keep[limb] for limb in rigid]
@@ -754,13 +888,19 @@ class WholeBodyTracker:
         return g, h, a, b
 
     def _solve(
-        self, qp: StepQP, dt: float, dampers: bool, root_bounded: bool, rigid: Sequence[str]
+        self,
+        qp: StepQP,
+        dt: float,
+        dampers: bool,
+        root_bounded: bool,
+        rigid: Sequence[str],
+        smooth: bool = True,
     ) -> FloatArray | None:
         """The QP's velocity (nv,) rad/s or m/s, or None when it has no solution. With daqp,
         the QP of :meth:`problem` with its limit rows (rows of the identity) given as bounds
         on dq, which daqp handles without forming them."""
         if tuning.QP_SOLVER == "daqp":
-            lower, upper = self._bounds(dt, root_bounded)
+            lower, upper = self._bounds(dt, root_bounded, smooth)
             rows = self._damper_rows() if dampers else []
             if rigid:
                 keeps = [self._rigid_keep[limb] for limb in rigid]
@@ -774,7 +914,7 @@ class WholeBodyTracker:
                 rows.append((a, b))
             x = _solve_daqp(qp.hessian, qp.linear, lower, upper, rows, len(a) if rigid else 0)
         else:
-            problem = self.problem(qp, dt, dampers, root_bounded, rigid)
+            problem = self.problem(qp, dt, dampers, root_bounded, rigid, smooth)
             result = qpsolvers.solve_problem(problem, solver=tuning.QP_SOLVER)
             x = result.x if result.found else None
         if x is None:

@@ -69,6 +69,19 @@ hpp_rubbles_4). Not lower: at 1.5 rad/s the humanoid's Twister break of a
 foot on the mat slipped its stance foot over 5 mm at brisk timing (the yaw helps it hold)
 and fell back to the slow one, 2.7 s instead of 1.35 s."""
 
+FREE_LIMB_ACCELERATION = 20.0
+"""rad/s^2, the acceleration bound of a free limb's joints (a limb neither holding a contact
+nor swinging: the humanoid's and Talos's arms on a walk) outside jumps, in pink's
+``AccelerationLimit`` form: a control step's joint motion differs from the last one's by at
+most this times dt^2, and never so fast that the joint could not brake before its position
+limit. The COM task may use the free arms (where the legs and trunk cannot keep the COM on a
+brisk curve: kept out of it, one stairs_humanoid seed of six failed and a Talos stair seed's
+COM lagged 85 mm), but unbounded they swung forward to horizontal and back in 0.15 s
+(100 rad/s^2 at the 99th percentile, 4.6 rad/s at most on hpp_stair_bauzil_talos). At 20 the
+same arms move at 3.2 rad/s at most, at the pace of a gesture, and every stair seed still
+plays (stairs_humanoid's average pace 0.43 m/s instead of 0.47 over six seeds: a brisk window
+more is slowed)."""
+
 QP_SOLVER = "daqp"
 """Backend of qpsolvers for the per-step QP (measured: about 0.1 ms for the humanoid)."""
 

@@ -11,11 +11,35 @@ import numpy as np
 import pinocchio as pin
 import qpsolvers
 from pink import Configuration, build_ik
-from pink.limits import ConfigurationLimit, VelocityLimit
+from pink.limits import AccelerationLimit, ConfigurationLimit, VelocityLimit
 from pink.tasks import ComTask, FrameTask, PostureTask
 
 from planner.motion import tuning
 from planner.motion.tracker import StepTargets, WholeBodyTracker, _saturated, speed_limits
+
+
+class _HalfBraking(AccelerationLimit):
+    """pink's acceleration limit braking before a position limit at half the bound (the
+    tracker's choice: pink's ``ConfigurationLimit`` rows then slow the last stretch within
+    the bound): pink's own braking rows at half the bound, its window rows at the whole."""
+
+    def compute_qp_inequalities(self, configuration: Any, dt: float) -> Any:
+        if self.projection_matrix is None:
+            return None
+        whole, previous = self.a_max, self.Delta_q_prev
+        k = len(whole)
+        self.a_max = whole / 2.0
+        try:
+            # an infinite last step leaves only the braking term in each block of rows
+            self.Delta_q_prev = np.full(k, np.inf)
+            g, upper = super().compute_qp_inequalities(configuration, dt)
+            self.Delta_q_prev = np.full(k, -np.inf)
+            _, lower = super().compute_qp_inequalities(configuration, dt)
+        finally:
+            self.a_max, self.Delta_q_prev = whole, previous
+        braking = np.concatenate([upper[:k], lower[k:]])
+        window = np.concatenate([whole * dt * dt + previous, whole * dt * dt - previous])
+        return g, np.minimum(window, braking)
 
 
 class PinkReference:
@@ -109,6 +133,24 @@ class PinkReference:
         out.append(self.posture)
         return out
 
+    def _free_limbs_acceleration(self, targets: StepTargets, dt: float) -> AccelerationLimit:
+        """pink's acceleration limit on the joints of the limbs the step leaves free (neither
+        in stance nor moving, nor sharing a joint with one that is), from the tracker's last
+        velocity."""
+        model = self.tracker.model
+        in_use = {limb for limb, _ in targets.stance} | {limb for limb, _ in targets.carried}
+        if targets.swing is not None:
+            in_use.add(targets.swing[0])
+        used = {int(i) for limb in in_use for i in self.tracker.character.limb(limb).idx_v}
+        bound = np.full(model.nv, np.inf)
+        for limb in self.tracker.character.limbs:
+            if limb.name not in in_use:
+                free = [int(i) for i in limb.idx_v if int(i) not in used]
+                bound[free] = tuning.FREE_LIMB_ACCELERATION
+        limit = _HalfBraking(model, bound)
+        limit.set_last_integration(self.tracker.velocity, dt)
+        return limit
+
     def problem(
         self,
         q: Any,
@@ -121,6 +163,8 @@ class PinkReference:
         """pink's ``build_ik`` problem of the step (rigid limbs' stance as equalities)."""
         tasks = self.tasks(q, targets, share)
         limits = list(self.limits[targets.root_bounded])
+        if targets.root_bounded:
+            limits.append(self._free_limbs_acceleration(targets, dt))
         if dampers:
             limits += list(self.dampers)
         problem = build_ik(self.configuration, tasks, dt, damping=tuning.DAMPING, limits=limits)

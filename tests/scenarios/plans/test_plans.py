@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 import pytest
 from scipy.spatial.transform import Rotation
 
@@ -238,6 +239,45 @@ def test_the_trunk_never_swivels(planned) -> None:  # type: ignore[no-untyped-de
         turn = Rotation.from_quat(a.q[3:7]).inv() * Rotation.from_quat(b.q[3:7])
         speed = abs(turn.as_rotvec()[2]) / (b.t - a.t)  # about a's own z axis
         assert speed <= tuning.ROOT_YAW_SPEED * 1.05, (a.t, speed)
+
+
+def test_free_arms_move_at_the_pace_of_a_gesture(planned) -> None:  # type: ignore[no-untyped-def]
+    """The joints of a limb that never touches anything (the humanoid's and Talos's arms on a
+    walk) change speed by at most ``FREE_LIMB_ACCELERATION`` per second between keyframes
+    (10 % over it at most; twice it where the bound yields to keeping the arm off the body or
+    the scene, at 1 % of the keyframes at most), but for the blend into the goal posture (its
+    last ``END_BLEND_S``): they helped the COM by swinging forward to horizontal and back in
+    0.15 s (100 rad/s^2 at the 99th percentile on hpp_stair_bauzil_talos)."""
+    name, result, *_ = planned
+    keyframes = result.value.motion.keyframes
+    character = get_character(SPECS[name]["character"])
+    touching = {limb for key in keyframes for limb in key.contacts}
+    shared = {int(i) for limb in touching for i in character.limb(limb).idx_v}
+    free = sorted(
+        int(i)
+        for limb in character.limbs
+        if limb.name not in touching
+        for i in limb.idx_v
+        if int(i) not in shared
+    )
+    if not free:
+        pytest.skip("every limb touches something")
+    model = character.model
+    t_blend = keyframes[-1].t - tuning.END_BLEND_S
+    speeds = [
+        (b.t, pin.difference(model, a.q, b.q)[free] / (b.t - a.t))
+        for a, b in itertools.pairwise(keyframes)
+    ]
+    bound = tuning.FREE_LIMB_ACCELERATION
+    over = []
+    for (t0, v0), (t1, v1) in itertools.pairwise(speeds):
+        if t1 > t_blend:
+            break
+        acceleration = float(np.max(np.abs(v1 - v0))) / (t1 - t0)
+        assert acceleration <= 2.0 * bound, (t1, acceleration)
+        if acceleration > 1.1 * bound:
+            over.append((t1, acceleration))
+    assert len(over) <= 0.01 * len(keyframes), over
 
 
 def test_a_dynamic_com_slows_only_from_where_the_body_could_not_follow(planned) -> None:  # type: ignore[no-untyped-def]
