@@ -393,6 +393,7 @@ class WholeBodyTracker:
         # the free limbs' tangent indices of the last objective, memoised per set of limbs
         # in use
         self._free: IntArray = np.zeros(0, dtype=np.int64)
+        self._room = (np.zeros(model.nv), np.zeros(model.nv))
         self._free_of: dict[frozenset[str], IntArray] = {}
         # kinematics stamps: of the last objective, of the last shape placements
         self._stamp = 0
@@ -771,18 +772,18 @@ class WholeBodyTracker:
         """The free limbs' acceleration bound on dq (pink's ``AccelerationLimit`` rows,
         braking at half the bound): their tangent indices (k,), and per index the lowest and
         highest step (k,), within ``FREE_LIMB_ACCELERATION`` dt^2 of the last step's
-        (``velocity`` dt) and slow enough to brake before a position limit. Joints whose
-        window misses their position and speed bounds ``lower``, ``upper`` (nv,) are left
-        out (those bounds come first); None when the root is unbounded (a jump's fast phase)
-        or no limb is free."""
+        (``velocity`` dt) and slow enough to brake before a position limit (the room to it
+        as the last :meth:`_limit_bounds` measured it). Joints whose window misses their
+        position and speed bounds ``lower``, ``upper`` (nv,, that :meth:`_limit_bounds`'s)
+        are left out (those bounds come first); None when the root is unbounded (a jump's
+        fast phase) or no limb is free."""
         columns = self._free
         if not root_bounded or columns.size == 0:
             return None
         reach = tuning.FREE_LIMB_ACCELERATION * dt * dt
         previous = self.velocity[columns] * dt
         braking = self._braking[columns]
-        up = pin.difference(self.model, self.q, self._upper_limit)[columns]
-        down = pin.difference(self.model, self._lower_limit, self.q)[columns]
+        up, down = self._room[0][columns], self._room[1][columns]
         # braking at half the bound (pink brakes at the bound): the position limit rows
         # (``ConfigurationLimit``, a share of the room per step) then slow the last stretch
         # at the bound at most; at the whole bound they cut in while the joint still moved
@@ -811,10 +812,13 @@ class WholeBodyTracker:
         upper[speed] = step
         lower[speed] = -step
         config = self._config
-        reach = gain * pin.difference(model, q, self._upper_limit)[config]
-        upper[config] = np.minimum(upper[config], reach)
-        reach = gain * pin.difference(model, q, self._lower_limit)[config]
-        lower[config] = np.maximum(lower[config], reach)
+        room_up = pin.difference(model, q, self._upper_limit)
+        room_down = pin.difference(model, q, self._lower_limit)
+        upper[config] = np.minimum(upper[config], gain * room_up[config])
+        lower[config] = np.maximum(lower[config], gain * room_down[config])
+        # (nv,) each, the tangent steps to the position limits: the acceleration bound's
+        # braking reads them (:meth:`_acceleration_window`)
+        self._room = (room_up, -room_down)
         return lower, upper
 
     def offer_poses(self, q: FloatArray, poses: Poses) -> None:
