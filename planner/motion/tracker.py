@@ -863,24 +863,14 @@ class WholeBodyTracker:
         smooth: bool = True,
     ) -> qpsolvers.Problem:
         """The QP of the step over dq: the cost ``qp``, :meth:`inequalities`, and the
-        ``rigid`` limbs' stance held exactly, ``J_c dq = -e_c`` (position rows only for a
-        point contact)."""
-        g, h, a, b = self._constraints(qp, dt, dampers, root_bounded, rigid, smooth)
+        ``rigid`` limbs' stance held exactly (:meth:`_rigid_rows`)."""
+        g, h = self.inequalities(dt, dampers, root_bounded, smooth)
+        a, b = self._rigid_rows(qp, rigid) if rigid else (None, None)
         return qpsolvers.Problem(qp.hessian, qp.linear, g, h, a, b)
 
-    def _constraints(
-        self,
-        qp: StepQP,
-        dt: float,
-        dampers: bool,
-        root_bounded: bool,
-        rigid: Sequence[str],
-        smooth: bool = True,
-    ) -> tuple[FloatArray, FloatArray, FloatArray | None, FloatArray | None]:
-        """G, h, A, b of :meth:`problem` (A, b None without rigid limbs)."""
-        g, h = self.inequalities(dt, dampers, root_bounded, smooth)
-        if not rigid:
-            return g, h, None, None
+    def _rigid_rows(self, qp: StepQP, rigid: Sequence[str]) -> tuple[FloatArray, FloatArray]:
+        """A (k, nv), b (k,): the ``rigid`` limbs' stance held exactly, ``J_c dq = -e_c``
+        (position rows only for a point contact)."""
         keeps = [self._rigid_keep[limb] for limb in rigid]
         a = np.vstack([qp.held[limb][0][keep] for limb, keep in zip(rigid, keeps, strict=True)])
         b = np.concatenate(
@@ -889,7 +879,7 @@ class WholeBodyTracker:
                 for limb, keep in zip(rigid, keeps, strict=True)
             ]
         )
-        return g, h, a, b
+        return a, b
 
     def _solve(
         self,
@@ -906,17 +896,12 @@ class WholeBodyTracker:
         if tuning.QP_SOLVER == "daqp":
             lower, upper = self._bounds(dt, root_bounded, smooth)
             rows = self._damper_rows() if dampers else []
+            equalities = 0
             if rigid:
-                keeps = [self._rigid_keep[limb] for limb in rigid]
-                a = np.vstack([qp.held[limb][0][k] for limb, k in zip(rigid, keeps, strict=True)])
-                b = np.concatenate(
-                    [
-                        -tuning.TASK_GAIN * qp.held[limb][1][k]
-                        for limb, k in zip(rigid, keeps, strict=True)
-                    ]
-                )
-                rows.append((a, b))
-            x = _solve_daqp(qp.hessian, qp.linear, lower, upper, rows, len(a) if rigid else 0)
+                held = self._rigid_rows(qp, rigid)
+                rows.append(held)
+                equalities = len(held[1])
+            x = _solve_daqp(qp.hessian, qp.linear, lower, upper, rows, equalities)
         else:
             problem = self.problem(qp, dt, dampers, root_bounded, rigid, smooth)
             result = qpsolvers.solve_problem(problem, solver=tuning.QP_SOLVER)
