@@ -42,7 +42,7 @@ import numpy as np
 import pinocchio as pin
 import qpsolvers
 from numpy.typing import NDArray
-from pink.limits import ConfigurationLimit, VelocityLimit
+from pink.limits import AccelerationLimit, ConfigurationLimit, VelocityLimit
 from scipy.spatial.transform import Rotation
 
 from planner.character import Character
@@ -191,17 +191,10 @@ def _saturated(here: FloatArray, target: FloatArray, reach: float) -> FloatArray
 
 def _position_limited(model: Any) -> BoolArray:
     """(nv,) whether each tangent index belongs to a joint with finite position limits (the
-    joints that must brake before them; pink's ``AccelerationLimit`` test)."""
+    joints that must brake before them), as pink's ``AccelerationLimit`` decides it."""
+    limit = AccelerationLimit(model, np.ones(model.nv))
     out = np.zeros(model.nv, dtype=bool)
-    lower = np.asarray(model.lowerPositionLimit)
-    upper = np.asarray(model.upperPositionLimit)
-    limited = np.asarray(model.hasConfigurationLimit(), dtype=bool)
-    for joint in model.joints:
-        if joint.idx_v < 0 or joint.nv == 0:
-            continue
-        q = slice(joint.idx_q, joint.idx_q + joint.nq)
-        if limited[q].all() and (upper[q] < 1e20).all() and (upper[q] > lower[q] + 1e-10).all():
-            out[joint.idx_v : joint.idx_v + joint.nv] = True
+    out[limit.indices] = limit.has_configuration_limit
     return out
 
 
@@ -393,7 +386,6 @@ class WholeBodyTracker:
         # the free limbs' tangent indices of the last objective, memoised per set of limbs
         # in use
         self._free: IntArray = np.zeros(0, dtype=np.int64)
-        self._room = (np.zeros(model.nv), np.zeros(model.nv))
         self._free_of: dict[frozenset[str], IntArray] = {}
         # kinematics stamps: of the last objective, of the last shape placements
         self._stamp = 0
@@ -736,10 +728,11 @@ class WholeBodyTracker:
         speeds = self._speeds[root_bounded]
         g_blocks = [self._g_limits[root_bounded]]
         h_blocks = [h_config, dt * speeds, dt * speeds]
-        window = None
-        if smooth:
-            limits = self._limit_bounds(dt, root_bounded)
-            window = self._acceleration_window(dt, root_bounded, *limits)
+        window = (
+            self._acceleration_window(dt, root_bounded, *self._limit_bounds(dt, root_bounded))
+            if smooth
+            else None
+        )
         if window is not None:
             columns, low, high = window
             rows = np.zeros((len(columns), self.model.nv))
@@ -758,8 +751,8 @@ class WholeBodyTracker:
         """The joint position, speed and (``smooth``) acceleration limit rows of
         :meth:`inequalities` (rows of the identity) as bounds on dq: lower (nv,), upper (nv,),
         +-1e30 where unbounded."""
-        lower, upper = self._limit_bounds(dt, root_bounded)
-        window = self._acceleration_window(dt, root_bounded, lower, upper) if smooth else None
+        lower, upper, room = self._limit_bounds(dt, root_bounded)
+        window = self._acceleration_window(dt, root_bounded, lower, upper, room) if smooth else None
         if window is not None:
             columns, low, high = window
             lower[columns] = np.maximum(lower[columns], low)
@@ -767,23 +760,28 @@ class WholeBodyTracker:
         return lower, upper
 
     def _acceleration_window(
-        self, dt: float, root_bounded: bool, lower: FloatArray, upper: FloatArray
+        self,
+        dt: float,
+        root_bounded: bool,
+        lower: FloatArray,
+        upper: FloatArray,
+        room: tuple[FloatArray, FloatArray],
     ) -> tuple[IntArray, FloatArray, FloatArray] | None:
         """The free limbs' acceleration bound on dq (pink's ``AccelerationLimit`` rows,
         braking at half the bound): their tangent indices (k,), and per index the lowest and
         highest step (k,), within ``FREE_LIMB_ACCELERATION`` dt^2 of the last step's
-        (``velocity`` dt) and slow enough to brake before a position limit (the room to it
-        as the last :meth:`_limit_bounds` measured it). Joints whose window misses their
-        position and speed bounds ``lower``, ``upper`` (nv,, that :meth:`_limit_bounds`'s)
-        are left out (those bounds come first); None when the root is unbounded (a jump's
-        fast phase) or no limb is free."""
+        (``velocity`` dt) and slow enough to brake before a position limit (``room``: the
+        steps (nv,) up to the upper and down to the lower limits). Joints whose window misses
+        their position and speed bounds ``lower``, ``upper`` (nv,) are left out (those
+        bounds come first); None when the root is unbounded (a jump's fast phase) or no limb
+        is free."""
         columns = self._free
         if not root_bounded or columns.size == 0:
             return None
         reach = tuning.FREE_LIMB_ACCELERATION * dt * dt
         previous = self.velocity[columns] * dt
         braking = self._braking[columns]
-        up, down = self._room[0][columns], self._room[1][columns]
+        up, down = room[0][columns], room[1][columns]
         # braking at half the bound (pink brakes at the bound): the position limit rows
         # (``ConfigurationLimit``, a share of the room per step) then slow the last stretch
         # at the bound at most; at the whole bound they cut in while the joint still moved
@@ -800,9 +798,13 @@ class WholeBodyTracker:
             return None
         return columns[meets], low[meets], high[meets]
 
-    def _limit_bounds(self, dt: float, root_bounded: bool) -> tuple[FloatArray, FloatArray]:
+    def _limit_bounds(
+        self, dt: float, root_bounded: bool
+    ) -> tuple[FloatArray, FloatArray, tuple[FloatArray, FloatArray]]:
         """The joint position and speed limit rows of :meth:`inequalities` as bounds on dq:
-        lower (nv,), upper (nv,), +-1e30 where unbounded."""
+        lower (nv,), upper (nv,), +-1e30 where unbounded; and the tangent steps (nv,) up to
+        the upper and down to the lower position limits (the acceleration bound's braking
+        reads them)."""
         q, model = self.q, self.model
         gain = self._config_gain
         step = dt * self._speeds[root_bounded]
@@ -816,10 +818,7 @@ class WholeBodyTracker:
         room_down = pin.difference(model, q, self._lower_limit)
         upper[config] = np.minimum(upper[config], gain * room_up[config])
         lower[config] = np.maximum(lower[config], gain * room_down[config])
-        # (nv,) each, the tangent steps to the position limits: the acceleration bound's
-        # braking reads them (:meth:`_acceleration_window`)
-        self._room = (room_up, -room_down)
-        return lower, upper
+        return lower, upper, (room_up, -room_down)
 
     def offer_poses(self, q: FloatArray, poses: Poses) -> None:
         """The :func:`shape_poses` ``poses`` of the motion geometry at ``q`` (nq,), computed
