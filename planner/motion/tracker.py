@@ -155,6 +155,15 @@ def speed_limits(model: Any, root_bounded: bool = False) -> FloatArray:
     return limits
 
 
+def trunk_orientation_cost(character: Character) -> float:
+    """Weight (per rad) of the trunk task's roll and pitch for ``character``: a level trunk
+    is held firmer than one that pitches with the terrain (``tuning.TRUNK_COST``,
+    ``tuning.PITCHING_TRUNK_COST``)."""
+    if character.max_pitch <= tuning.LEVEL_TRUNK_PITCH:
+        return tuning.TRUNK_COST
+    return tuning.PITCHING_TRUNK_COST
+
+
 def _nonzero(
     position: float | Sequence[float], orientation: float | Sequence[float]
 ) -> tuple[FloatArray, IntArray | slice]:
@@ -262,8 +271,9 @@ def _character_terms(character: Character) -> _CharacterTerms:
             tuning.SETTLE_COST, tuning.SETTLE_COST if patch else 0.0
         )
         rigid_keep[limb.name] = slice(0, 6) if patch else slice(0, 3)
+    trunk_cost = trunk_orientation_cost(character)
     trunk_weights, trunk_keep = _nonzero(
-        [0.0, 0.0, tuning.TRUNK_HEIGHT_COST], [tuning.TRUNK_COST, tuning.TRUNK_COST, 0.0]
+        [0.0, 0.0, tuning.TRUNK_HEIGHT_COST], [trunk_cost, trunk_cost, 0.0]
     )
     config = ConfigurationLimit(model)
     g_limits: dict[bool, FloatArray] = {}
@@ -487,10 +497,12 @@ class WholeBodyTracker:
         qp = self.objective(q, targets, share)
         rigid = [limb for limb, _ in targets.stance] if targets.rigid_stance else []
         # (dampers, contacts hard, free limbs' acceleration bounded): the acceleration bound
-        # yields first (a hand let go of a wall must get off it), then the dampers
+        # yields first (a hand let go of a wall must get off it), then the dampers, with the
+        # bound tried again without them (a phase's first step whose dampers could not be
+        # met flung Talos's free arms at 38 rad/s^2)
         attempts = [(True, True, True)]
         if self._free.size and targets.root_bounded:
-            attempts.append((True, True, False))
+            attempts += [(True, True, False), (False, True, True)]
         attempts.append((False, True, False))
         if rigid:
             attempts += [(True, False, False), (False, False, False)]

@@ -101,8 +101,16 @@ SWING_POSITION_COST = 20.0
 SWING_ORIENTATION_COST = 5.0
 """A swinging patch (sole, palm) turning toward its landing orientation (per rad)."""
 
-TRUNK_COST = 2.0
-"""Root roll and pitch held at the planned trunk orientation (yaw left free)."""
+TRUNK_COST = 4.0
+"""Root roll and pitch held at the planned trunk orientation (yaw left free), for a
+character whose trunk stays level (``max_pitch`` at most ``LEVEL_TRUNK_PITCH``): at 2 the
+COM task rolled HyQ's trunk 25 deg on hpp_darpa_hyq and pitched the humanoid's 21 deg on
+the stairs; at 4, 17 and 10 deg."""
+
+PITCHING_TRUNK_COST = 2.0
+"""The same for a trunk that pitches with the terrain (the hexapod): held firmer, the
+climbing hexapod's trunk could not lean in to keep its feet on the wall (a stance foot
+slipped 18-20 mm)."""
 
 TRUNK_HEIGHT_COST = 5.0
 """Root height (along the trunk's own z axis) pulled toward the planned state's: the COM

@@ -15,7 +15,13 @@ from pink.limits import AccelerationLimit, ConfigurationLimit, VelocityLimit
 from pink.tasks import ComTask, FrameTask, PostureTask
 
 from planner.motion import tuning
-from planner.motion.tracker import StepTargets, WholeBodyTracker, _saturated, speed_limits
+from planner.motion.tracker import (
+    StepTargets,
+    WholeBodyTracker,
+    _saturated,
+    speed_limits,
+    trunk_orientation_cost,
+)
 
 
 class _HalfBraking(AccelerationLimit):
@@ -52,11 +58,12 @@ class PinkReference:
         model = tracker.model
         self.data = model.createData()
         self.configuration = Configuration(model, self.data, pin.neutral(model), copy_data=False)
+        trunk_cost = trunk_orientation_cost(tracker.character)
         self.com = ComTask(cost=tuning.COM_COST, gain=tuning.TASK_GAIN)
         self.trunk = FrameTask(
             str(model.frames[1].name),
             position_cost=[0.0, 0.0, tuning.TRUNK_HEIGHT_COST],
-            orientation_cost=[tuning.TRUNK_COST, tuning.TRUNK_COST, 0.0],
+            orientation_cost=[trunk_cost, trunk_cost, 0.0],
             gain=tuning.TRUNK_GAIN,
         )
         self.posture = PostureTask(cost=tuning.POSTURE_COST, gain=tuning.POSTURE_GAIN)
