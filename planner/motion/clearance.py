@@ -16,7 +16,9 @@ coal gives one witness pair per shape, so a foot rising along a riser sees only 
 then only the tread once past the edge, and would slide into the corner between them. The
 scene limit therefore remembers each shape's recent witnesses (scene point, normal, body
 point in its joint's frame) for ``WITNESS_MEMORY`` steps and keeps a row for each: the
-half-spaces of the last few steps bound the shape together.
+half-spaces of the last few steps bound the shape together. A new witness replaces those it
+sees the scene locally convex with (``_superseded``): round a convex edge one plane is
+enough, and the older, tilted ones would hold the shape back.
 """
 
 from __future__ import annotations
@@ -163,6 +165,25 @@ def _damper_rows(
     near = np.minimum(0.0, tuning.DAMPER_RATE * distances)
     bounds = np.where(distances >= securities, far, near)
     return -speeds, np.maximum(bounds, -tuning.MAX_PUSH)
+
+
+def _superseded(
+    memory: list[tuple[int, FloatArray]], row: FloatArray
+) -> list[tuple[int, FloatArray]]:
+    """``memory`` (step, witness row (9,): scene point, normal, body point) without the
+    witnesses that the new ``row`` supersedes: those locally convex with it, each scene
+    point on or behind the other's plane (``WITNESS_SUPERSEDE_TOLERANCE``)."""
+    if not memory:
+        return memory
+    point, normal = row[:3], row[3:6]
+    tolerance = tuning.WITNESS_SUPERSEDE_TOLERANCE
+    kept = []
+    for entry in memory:
+        old = entry[1]
+        gap = old[:3] - point
+        if float(normal @ gap) > tolerance or float(old[3:6] @ gap) < -tolerance:
+            kept.append(entry)  # concave: the new plane does not fence the old feature
+    return kept
 
 
 class SceneDistances:
@@ -384,7 +405,9 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
                         continue
                     local = frame.actInv(np.array(result.getNearestPoint2()))
                     row = np.concatenate((result.getNearestPoint1(), result.normal, local))
+                    memory = _superseded(memory, row)
                     memory.append((self.steps, row))
+                self.memory[i] = memory
                 measured.append(i)
                 nearest_of.append(nearest)
             if memory:
