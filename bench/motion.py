@@ -11,7 +11,8 @@ link, frames with a stance link > 1 cm inside the scene more than 5 cm from its 
 ("far"), stance effector distance from its contact (max, mm), frames with self-collision > 1 cm,
 keyframe pairs with a joint over 10 rad/s or its URDF limit (and the fastest), root jumps
 > 5 cm per 30 Hz step per run, keyframe COM vs COM curve (p99, mm), root tilt (max, deg),
-phases animated, pace (m/s), frames with a still COM (< 1 cm/s), seconds of computation per
+trunk tilt (the most tilted body carrying two effectors or more: a humanoid's chest; max,
+deg), phases animated, pace (m/s), frames with a still COM (< 1 cm/s), seconds of computation per
 second of animation (median), seconds of auditing per run (median).
 
 After the plans, a pace table (issue 13) per plan scenario: average progress (m/s, start to
@@ -81,6 +82,7 @@ class Tally:
     root_jumps: int = 0
     com_errors: list[float] = field(default_factory=list)
     tilt: float = math.nan
+    trunk_tilt: float = math.nan
     coverage: list[float] = field(default_factory=list)
     pace: list[float] = field(default_factory=list)
     still: float = 0.0
@@ -111,6 +113,7 @@ class Tally:
         self.com_errors.extend(float(e) for e in audit.com_error if math.isfinite(e))
         if audit.frames:
             self.tilt = float(np.nanmax([self.tilt, audit.tilt_max_deg]))
+            self.trunk_tilt = float(np.nanmax([self.trunk_tilt, audit.trunk_tilt_max_deg]))
         if math.isfinite(audit.coverage):
             self.coverage.append(audit.coverage)
         if math.isfinite(audit.pace_m_per_s):
@@ -132,13 +135,14 @@ class Tally:
         stance = f"{1e3 * self.stance_error:.1f}" if math.isfinite(self.stance_error) else "-"
         cover = f"{statistics.mean(self.coverage):.0%}" if self.coverage else "-"
         tilt = f"{self.tilt:.0f}" if math.isfinite(self.tilt) else "-"
+        trunk = f"{self.trunk_tilt:.0f}" if math.isfinite(self.trunk_tilt) else "-"
         jumps = f"{self.root_jumps / max(1, self.runs):.1f}"
         return (
             f"{name:32s} {pct(self.solved, self.runs):>6s} {pct(self.penetrating, self.frames)} "
             f"{worst:>24s} {pct(self.stance_far, self.frames)} {stance:>7s} "
             f"{pct(self.self_frames, self.frames)} "
             f"{pct(self.pops, self.pairs)} {self.max_speed:6.1f} {jumps:>6s} {p99:>6s} "
-            f"{tilt:>5s} {cover:>5s} {med(self.pace, '.3f'):>6s} "
+            f"{tilt:>5s} {trunk:>5s} {cover:>5s} {med(self.pace, '.3f'):>6s} "
             f"{pct(self.still, self.frames)} {med(self.cost, '.3f'):>6s} "
             f"{med(self.audit_s, '.1f'):>6s}"
         )
@@ -148,6 +152,7 @@ HEADER = (
     f"{'scenario':32s} {'ok':>6s} {'pen':>6s} {'worst mm (link)':>24s} {'far':>6s} "
     f"{'stance':>7s} "
     f"{'self':>6s} {'pops':>6s} {'rad/s':>6s} {'jumps':>6s} {'COM99':>6s} {'tilt':>5s} "
+    f"{'trunk':>5s} "
     f"{'cover':>5s} {'pace':>6s} {'still':>6s} {'s/s':>6s} {'aud s':>6s}"
 )
 

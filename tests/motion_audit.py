@@ -54,10 +54,12 @@ Figures per keyframe pair: a pop when some joint moves faster (|pin.difference| 
 ``MAX_JOINT_SPEED`` or its URDF velocity limit; a root jump when the root moves more than
 ``ROOT_JUMP_M`` (scaled up for pairs further apart than 1/30 s) and the pair does not overlap a
 flight. Per keyframe: the COM error against the first COM piece whose [t0, t1] holds t
-(de Casteljau); the tilt of the root's z axis; a still COM when the central difference of the
-keyframe COMs is under ``STILL_COM_SPEED``. ``stance_penetrating_frames`` counts keyframes
-where a stance link is more than 1 cm inside the scene farther than ``STANCE_NEAR_M`` (plus
-the patch's half diagonal or ball radius) from its phase contact points (the optional check).
+(de Casteljau); the tilt of the root's z axis, and the trunk's (the most tilted body that
+carries two effectors or more: a humanoid's pelvis or chest); a still COM when the central
+difference of the keyframe COMs is under ``STILL_COM_SPEED``. ``stance_penetrating_frames``
+counts keyframes where a stance link is more than 1 cm inside the scene farther than
+``STANCE_NEAR_M`` (plus the patch's half diagonal or ball radius) from its phase contact
+points (the optional check).
 
 Inputs are plain data (``Frame``, ``PhaseData``, ``ComPiece`` or tuples of the same fields);
 ``audit_from_domain`` reads today's planner objects and ``audit_from_json`` an HTTP answer.
@@ -175,6 +177,7 @@ class MotionAudit:
     com_error_p99_m: float
     com_error_max_m: float
     tilt_max_deg: float
+    trunk_tilt_max_deg: float
     phases: int
     phases_animated: int
     coverage: float
@@ -215,7 +218,8 @@ class MotionAudit:
             f"self {self.self_collision_frames} pops {self.pops} "
             f"(max {self.max_joint_speed:.1f} rad/s {self.max_speed_joint}) "
             f"root jumps {self.root_jumps} COM p99 {1e3 * self.com_error_p99_m:.0f} mm "
-            f"tilt {self.tilt_max_deg:.0f} deg coverage {self.coverage:.0%}"
+            f"tilt {self.tilt_max_deg:.0f} deg (trunk {self.trunk_tilt_max_deg:.0f}) "
+            f"coverage {self.coverage:.0%}"
         )
 
 
@@ -712,6 +716,15 @@ class AuditCharacter:
             self.stance_objects[limb.name] = frozenset(
                 i for i, j in enumerate(self.object_joints) if int(j) in subtree
             )
+        # the trunk: the joints whose bodies carry two effectors or more (a humanoid's
+        # pelvis and chest; a quadruped's body alone)
+        carried: dict[int, int] = {}
+        for fid in self.frame_ids.values():
+            j = int(self.model.frames[fid].parentJoint)
+            while j > 0:
+                carried[j] = carried.get(j, 0) + 1
+                j = int(self.model.parents[j])
+        self.trunk_joints = tuple(sorted(j for j, n in carried.items() if n >= 2))
         self.velocity_limit = np.array(self.model.velocityLimit, dtype=np.float64)
         posture = dict(reference_posture)
         q = np.array(pin.neutral(self.model), dtype=np.float64)
@@ -940,6 +953,7 @@ def audit_motion(
     self_pen = np.zeros(n)
     com_error = np.full(n, np.nan)
     tilt = np.zeros(n)
+    trunk_tilt = np.zeros(n)
     coms = np.zeros((n, 3))
     roots = np.zeros((n, 3))
     stance_pen_frames = 0
@@ -953,6 +967,12 @@ def audit_motion(
         roots[k] = q[:3]
         rotation = np.array(pin.Quaternion(q[6], q[3], q[4], q[5]).toRotationMatrix())
         tilt[k] = math.degrees(math.acos(min(1.0, max(-1.0, float(rotation[2, 2])))))
+        pin.forwardKinematics(character.model, character.data, q)
+        upright = min(
+            (float(character.data.oMi[j].rotation[2, 2]) for j in character.trunk_joints),
+            default=float(rotation[2, 2]),
+        )
+        trunk_tilt[k] = math.degrees(math.acos(min(1.0, max(-1.0, upright))))
         stance: set[int] = set()
         for limb in frame.contacts:
             if limb in character.stance_objects:
@@ -1083,6 +1103,7 @@ def audit_motion(
         com_error_p99_m=float(np.percentile(valid_com, 99)) if len(valid_com) else math.nan,
         com_error_max_m=float(valid_com.max()) if len(valid_com) else math.nan,
         tilt_max_deg=float(tilt.max()) if n else math.nan,
+        trunk_tilt_max_deg=float(trunk_tilt.max()) if n else math.nan,
         phases=len(phase_list),
         phases_animated=int(animated),
         coverage=animated / len(phase_list) if phase_list else math.nan,

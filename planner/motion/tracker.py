@@ -164,6 +164,14 @@ def trunk_orientation_cost(character: Character) -> float:
     return tuning.PITCHING_TRUNK_COST
 
 
+def torso_columns(character: Character) -> list[int]:
+    """Tangent indices (sorted) of the joints of no limb (a chest's, a head's), past the
+    root's."""
+    root_nv = 6 if character.model.joints[1].nq == 7 else 0
+    used = {int(i) for limb in character.limbs for i in limb.idx_v}
+    return [i for i in range(root_nv, character.model.nv) if i not in used]
+
+
 def _nonzero(
     position: float | Sequence[float], orientation: float | Sequence[float]
 ) -> tuple[FloatArray, IntArray | slice]:
@@ -235,6 +243,7 @@ class _CharacterTerms:
     lower_limit: FloatArray
     upper_limit: FloatArray
     diagonal_terms: FloatArray
+    posture_weights: FloatArray
     limb_columns: dict[str, frozenset[int]]
     braking: BoolArray
 
@@ -289,8 +298,10 @@ def _character_terms(character: Character) -> _CharacterTerms:
     root_nv = 6 if root_nq else 0
     # the cost's constant diagonal: the posture task's weight on the joints (its Jacobian
     # is the identity there) and the damping everywhere
+    posture_weights = np.full(model.nv - root_nv, tuning.POSTURE_COST**2)
+    posture_weights[[i - root_nv for i in torso_columns(character)]] = tuning.TORSO_POSTURE_COST**2
     diagonal = np.full(model.nv, tuning.DAMPING)
-    diagonal[root_nv:] += tuning.POSTURE_COST * tuning.POSTURE_COST
+    diagonal[root_nv:] += posture_weights
     arrays = [trunk_weights, trunk_keep, *speeds.values(), *speed_index.values()]
     arrays += [*g_limits.values(), *(x for pair in stance_weights.values() for x in pair)]
     arrays += [x for pair in swing_weights.values() for x in pair]
@@ -320,6 +331,7 @@ def _character_terms(character: Character) -> _CharacterTerms:
         lower_limit=_read_only(np.array(model.lowerPositionLimit, dtype=np.float64)),
         upper_limit=_read_only(np.array(model.upperPositionLimit, dtype=np.float64)),
         diagonal_terms=_read_only(np.diag(diagonal)),
+        posture_weights=_read_only(posture_weights),
         limb_columns={limb.name: frozenset(int(i) for i in limb.idx_v) for limb in character.limbs},
         braking=_read_only(_position_limited(model)),
     )
@@ -387,6 +399,7 @@ class WholeBodyTracker:
         self._lower_limit, self._upper_limit = terms.lower_limit, terms.upper_limit
         self._unbounded = np.full(model.nv, 1e30)  # the bound of an unbounded dq
         self._diagonal_terms = terms.diagonal_terms
+        self._posture_weights = terms.posture_weights
         self._limb_columns = terms.limb_columns
         self._braking = terms.braking
         self.q = pin.neutral(model)
@@ -661,22 +674,24 @@ class WholeBodyTracker:
         joints = self._joints
         aim = q.copy()
         hessian += self._diagonal_terms
+        # the constant diagonal holds the posture weights of ``_posture_weights`` (the torso's
+        # firmer); a jump's posture-led step and a step's free limbs weigh otherwise
+        base = self._posture_weights
         if targets.posture_led:
             aim[joints] = posture[joints]
             gain = tuning.TASK_GAIN
-            weight = tuning.JUMP_POSTURE_COST * tuning.JUMP_POSTURE_COST
-            # the constant diagonal holds POSTURE_COST's weight
-            extra = weight - tuning.POSTURE_COST * tuning.POSTURE_COST
-            np.einsum("ii->i", hessian)[self._root_nv :] += extra  # a view of the diagonal
+            weights = np.full(base.shape, tuning.JUMP_POSTURE_COST**2)
         else:
             reach = tuning.POSTURE_MAX_ERROR * share
             aim[joints] = q[joints] + np.minimum(
                 np.maximum(posture[joints] - q[joints], -reach), reach
             )
             gain = 1.0 - (1.0 - tuning.POSTURE_GAIN) ** share
-            weight = tuning.POSTURE_COST * tuning.POSTURE_COST
+            weights = base.copy()
+            weights[self._free - self._root_nv] = tuning.FREE_LIMB_POSTURE_COST**2
+        np.einsum("ii->i", hessian)[self._root_nv :] += weights - base  # a view of the diagonal
         pull = pin.difference(model, aim, q)[self._root_nv :]
-        linear[self._root_nv :] += weight * gain * pull
+        linear[self._root_nv :] += weights * gain * pull
         self.scene.set_phase(frozenset(skipped), light)
         return StepQP(hessian, linear, held)
 

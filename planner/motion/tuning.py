@@ -119,6 +119,16 @@ alone leaves the body free to crouch and fold; the planned states say how tall i
 POSTURE_COST = 1.0
 """Joints pulled toward the phase's planned posture: arms hang naturally, knees unfold."""
 
+FREE_LIMB_POSTURE_COST = 2.0
+"""``POSTURE_COST`` of the joints of a free limb (neither holding a contact nor moving, as
+``FREE_LIMB_ACCELERATION``): at 1 the COM task raised Talos's free arms 75 deg forward on the
+stairs (0.47 rad at the 90th percentile); at 2 they swing 0.6 rad at most, 0.1 at p90."""
+
+TORSO_POSTURE_COST = 5.5
+"""``POSTURE_COST`` of the joints of no limb (the chest's, the head's): at 1 the COM task
+folded Talos's chest up to 70 deg from the vertical on the stairs while the pelvis kept
+its 25 deg bound; at 5.5 the chest leans 30 deg at most, as far as the pelvis under it."""
+
 POSTURE_MAX_ERROR = 0.1
 """rad: each joint's posture target is at most this far from where the joint is (the
 posture error saturated like the COM's and the swing's): a posture far from the current one

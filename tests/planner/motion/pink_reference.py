@@ -137,24 +137,44 @@ class PinkReference:
         goal = np.array(q, dtype=np.float64)
         goal[joints] = q[joints] + np.clip(posture[joints] - q[joints], -reach, reach)
         self.posture.set_target(goal)
+        self.posture.cost = self._posture_costs(targets)
         out.append(self.posture)
         return out
+
+    def _free_columns(self, targets: StepTargets) -> list[int]:
+        """Tangent indices of the joints of the limbs the step leaves free (neither in stance
+        nor moving, nor sharing a joint with one that is)."""
+        in_use = {limb for limb, _ in targets.stance} | {limb for limb, _ in targets.carried}
+        if targets.swing is not None:
+            in_use.add(targets.swing[0])
+        character = self.tracker.character
+        used = {int(i) for limb in in_use for i in character.limb(limb).idx_v}
+        return [
+            int(i)
+            for limb in character.limbs
+            if limb.name not in in_use
+            for i in limb.idx_v
+            if int(i) not in used
+        ]
+
+    def _posture_costs(self, targets: StepTargets) -> np.ndarray:
+        """The posture task's cost per joint (nv - 6,): the torso's (joints of no limb) and
+        the free limbs' their own."""
+        character = self.tracker.character
+        nv = self.tracker.model.nv
+        costs = np.full(nv, tuning.TORSO_POSTURE_COST)
+        for limb in character.limbs:
+            costs[limb.idx_v] = tuning.POSTURE_COST
+        costs[self._free_columns(targets)] = tuning.FREE_LIMB_POSTURE_COST
+        return costs[6:]
 
     def _free_limbs_acceleration(self, targets: StepTargets, dt: float) -> AccelerationLimit:
         """pink's acceleration limit on the joints of the limbs the step leaves free (neither
         in stance nor moving, nor sharing a joint with one that is), from the tracker's last
         velocity."""
-        model = self.tracker.model
-        in_use = {limb for limb, _ in targets.stance} | {limb for limb, _ in targets.carried}
-        if targets.swing is not None:
-            in_use.add(targets.swing[0])
-        used = {int(i) for limb in in_use for i in self.tracker.character.limb(limb).idx_v}
-        bound = np.full(model.nv, np.inf)
-        for limb in self.tracker.character.limbs:
-            if limb.name not in in_use:
-                free = [int(i) for i in limb.idx_v if int(i) not in used]
-                bound[free] = tuning.FREE_LIMB_ACCELERATION
-        limit = _HalfBraking(model, bound)
+        bound = np.full(self.tracker.model.nv, np.inf)
+        bound[self._free_columns(targets)] = tuning.FREE_LIMB_ACCELERATION
+        limit = _HalfBraking(self.tracker.model, bound)
         limit.set_last_integration(self.tracker.velocity, dt)
         return limit
 
