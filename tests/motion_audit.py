@@ -54,8 +54,9 @@ Figures per keyframe pair: a pop when some joint moves faster (|pin.difference| 
 ``MAX_JOINT_SPEED`` or its URDF velocity limit; a root jump when the root moves more than
 ``ROOT_JUMP_M`` (scaled up for pairs further apart than 1/30 s) and the pair does not overlap a
 flight. Per keyframe: the COM error against the first COM piece whose [t0, t1] holds t
-(de Casteljau); the tilt of the root's z axis, and the trunk's (the most tilted body that
-carries two effectors or more: a humanoid's pelvis or chest); a still COM when the central
+(de Casteljau); the tilt of the root's z axis, and the trunk's (the most tilted body where the
+limbs branch or between such a body and the root: a humanoid's pelvis or chest; tilts from
+the reference posture's); a still COM when the central
 difference of the keyframe COMs is under ``STILL_COM_SPEED``. ``stance_penetrating_frames``
 counts keyframes where a stance link is more than 1 cm inside the scene farther than
 ``STANCE_NEAR_M`` (plus the patch's half diagonal or ball radius) from its phase contact
@@ -716,15 +717,22 @@ class AuditCharacter:
             self.stance_objects[limb.name] = frozenset(
                 i for i, j in enumerate(self.object_joints) if int(j) in subtree
             )
-        # the trunk: the joints whose bodies carry two effectors or more (a humanoid's
-        # pelvis and chest; a quadruped's body alone)
-        carried: dict[int, int] = {}
+        # the trunk: the joints where the limbs' chains branch (effectors in two child
+        # subtrees or more) and those between them and the root (a humanoid's pelvis and
+        # chest, a quadruped's body alone; not a thigh that carries a seat and a foot)
+        branches: dict[int, set[int]] = {}
         for fid in self.frame_ids.values():
-            j = int(self.model.frames[fid].parentJoint)
-            while j > 0:
-                carried[j] = carried.get(j, 0) + 1
+            child = int(self.model.frames[fid].parentJoint)
+            while child > 0:
+                parent = int(self.model.parents[child])
+                branches.setdefault(parent, set()).add(child)
+                child = parent
+        trunk: set[int] = set()
+        for j, children in branches.items():
+            while len(children) >= 2 and j > 0 and j not in trunk:
+                trunk.add(j)
                 j = int(self.model.parents[j])
-        self.trunk_joints = tuple(sorted(j for j, n in carried.items() if n >= 2))
+        self.trunk_joints = tuple(sorted(trunk))
         self.velocity_limit = np.array(self.model.velocityLimit, dtype=np.float64)
         posture = dict(reference_posture)
         q = np.array(pin.neutral(self.model), dtype=np.float64)
@@ -733,6 +741,12 @@ class AuditCharacter:
             if jname in posture and self.model.joints[j].nq == 1:
                 q[self.model.joints[j].idx_q] = float(posture[jname])
         self.q_reference = q
+        # each trunk body's up direction in its own frame: the world's z axis at the reference
+        # posture (upright, root level), against which its tilt is measured
+        pin.forwardKinematics(self.model, self.data, q)
+        self.trunk_up = tuple(
+            np.array(self.data.oMi[j].rotation[2, :], dtype=np.float64) for j in self.trunk_joints
+        )
         self.self_pairs = self._self_pairs()
 
     def _shape_ancestor(self, joint: int) -> int:
@@ -969,7 +983,10 @@ def audit_motion(
         tilt[k] = math.degrees(math.acos(min(1.0, max(-1.0, float(rotation[2, 2])))))
         pin.forwardKinematics(character.model, character.data, q)
         upright = min(
-            (float(character.data.oMi[j].rotation[2, 2]) for j in character.trunk_joints),
+            (
+                float(character.data.oMi[j].rotation[2, :] @ up)
+                for j, up in zip(character.trunk_joints, character.trunk_up, strict=True)
+            ),
             default=float(rotation[2, 2]),
         )
         trunk_tilt[k] = math.degrees(math.acos(min(1.0, max(-1.0, upright))))

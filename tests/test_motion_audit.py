@@ -234,6 +234,24 @@ def test_com_curve_offset_detected(humanoid: AuditCharacter) -> None:
     assert good.tilt_max_deg == pytest.approx(0.0, abs=1e-9)
 
 
+def test_a_folded_chest_is_a_trunk_tilt_a_bent_hip_is_not(humanoid: AuditCharacter) -> None:
+    # the trunk is where the limbs branch and the chain up to it: pelvis and chest, not a
+    # thigh carrying a seat and a foot
+    names = {str(humanoid.model.names[j]) for j in humanoid.trunk_joints}
+    assert names == {"root_joint", "torso_yaw", "torso_pitch"}
+    assert audit_character("quadruped").trunk_joints == (1,)  # the root joint alone
+    q0 = _standing(humanoid)
+    scene = _scene_for("convex")
+    folded = _set(humanoid, q0, torso_pitch=0.7)
+    audit = audit_motion(humanoid, scene, [(0.0, q0, ()), (1.0, folded, ())])
+    assert audit.tilt_max_deg == pytest.approx(0.0, abs=1e-9)
+    assert audit.trunk_tilt_max_deg == pytest.approx(np.degrees(0.7), abs=1e-6)
+    bent = _set(humanoid, q0, l_hip_pitch=-0.7)
+    assert audit_motion(humanoid, scene, [(0.0, bent, ())]).trunk_tilt_max_deg == pytest.approx(
+        0.0, abs=1e-9
+    )
+
+
 def test_bezier_point_is_bernstein() -> None:
     rng = np.random.default_rng(0)
     pts = rng.normal(size=(5, 3))
