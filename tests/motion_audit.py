@@ -56,8 +56,8 @@ Figures per keyframe pair: a pop when some joint moves faster (|pin.difference| 
 flight. Per keyframe: the COM error against the first COM piece whose [t0, t1] holds t
 (de Casteljau); the tilt of the root's z axis, and the trunk's (the most tilted body where the
 limbs branch or between such a body and the root: a humanoid's pelvis or chest; tilts from
-the reference posture's); a still COM when the central
-difference of the keyframe COMs is under ``STILL_COM_SPEED``. ``stance_penetrating_frames``
+the reference posture's); a still COM when the central difference of the keyframe COMs is
+under ``STILL_COM_SPEED``. ``stance_penetrating_frames``
 counts keyframes where a stance link is more than 1 cm inside the scene farther than
 ``STANCE_NEAR_M`` (plus the patch's half diagonal or ball radius) from its phase contact
 points (the optional check).
@@ -729,7 +729,9 @@ class AuditCharacter:
                 child = parent
         trunk: set[int] = set()
         for j, children in branches.items():
-            while len(children) >= 2 and j > 0 and j not in trunk:
+            if len(children) < 2:
+                continue
+            while j > 0 and j not in trunk:  # the branch point and its ancestors
                 trunk.add(j)
                 j = int(self.model.parents[j])
         self.trunk_joints = tuple(sorted(trunk))
@@ -981,8 +983,7 @@ def audit_motion(
         roots[k] = q[:3]
         rotation = np.array(pin.Quaternion(q[6], q[3], q[4], q[5]).toRotationMatrix())
         tilt[k] = math.degrees(math.acos(min(1.0, max(-1.0, float(rotation[2, 2])))))
-        pin.forwardKinematics(character.model, character.data, q)
-        upright = min(
+        upright = min(  # the joint placements of ``place(q)`` above
             (
                 float(character.data.oMi[j].rotation[2, :] @ up)
                 for j, up in zip(character.trunk_joints, character.trunk_up, strict=True)

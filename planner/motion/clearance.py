@@ -405,9 +405,8 @@ class SceneClearance(Limit):  # type: ignore[misc]  # pink ships no type informa
                         continue
                     local = frame.actInv(np.array(result.getNearestPoint2()))
                     row = np.concatenate((result.getNearestPoint1(), result.normal, local))
-                    memory = _superseded(memory, row)
+                    memory[:] = _superseded(memory, row)  # the list self.memory holds
                     memory.append((self.steps, row))
-                self.memory[i] = memory
                 measured.append(i)
                 nearest_of.append(nearest)
             if memory:

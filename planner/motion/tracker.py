@@ -164,10 +164,9 @@ def trunk_orientation_cost(character: Character) -> float:
     return tuning.PITCHING_TRUNK_COST
 
 
-def torso_columns(character: Character) -> list[int]:
+def _torso_columns(character: Character, root_nv: int) -> list[int]:
     """Tangent indices (sorted) of the joints of no limb (a chest's, a head's), past the
-    root's."""
-    root_nv = 6 if character.model.joints[1].nq == 7 else 0
+    root's ``root_nv``."""
     used = {int(i) for limb in character.limbs for i in limb.idx_v}
     return [i for i in range(root_nv, character.model.nv) if i not in used]
 
@@ -299,7 +298,8 @@ def _character_terms(character: Character) -> _CharacterTerms:
     # the cost's constant diagonal: the posture task's weight on the joints (its Jacobian
     # is the identity there) and the damping everywhere
     posture_weights = np.full(model.nv - root_nv, tuning.POSTURE_COST**2)
-    posture_weights[[i - root_nv for i in torso_columns(character)]] = tuning.TORSO_POSTURE_COST**2
+    torso = [i - root_nv for i in _torso_columns(character, root_nv)]
+    posture_weights[torso] = tuning.TORSO_POSTURE_COST**2
     diagonal = np.full(model.nv, tuning.DAMPING)
     diagonal[root_nv:] += posture_weights
     arrays = [trunk_weights, trunk_keep, *speeds.values(), *speed_index.values()]
