@@ -209,15 +209,36 @@ class Lane(Gate):
 
     def _replace(self) -> None:
         """Start a fresh process in place of one that died under its task, so the next task
-        does not wait for it to start (it stays idle until then)."""
+        does not wait for it to start (it stays idle until then). Started from a thread: a
+        process start takes the loop's thread tens of ms, which /health would wait for."""
         if self._closed:
             return
-        try:
-            self._idle.append(self._spawn())
-        except OSError as exc:  # out of processes or memory: the next task tries again
-            log.error("could not start a replacement %s process: %s", self.name, exc)
+        started = asyncio.get_running_loop().run_in_executor(None, self._spawn)
+        started.add_done_callback(self._keep_idle)
 
-    def _take_worker(self) -> _Worker:
+    def _keep_idle(self, started: asyncio.Future[_Worker]) -> None:
+        """Keep a process started for nobody in particular idle (killed if the lane closed)."""
+        if started.cancelled():
+            return
+        error = started.exception()
+        if error is not None:  # out of processes or memory: the next task tries again
+            log.error("could not start a replacement %s process: %s", self.name, error)
+        elif self._closed:
+            self._discard(started.result(), kill=True)
+        else:
+            self._idle.append(started.result())
+
+    async def _start_process(self) -> _Worker:
+        """:meth:`_spawn` from a thread, off the event loop (see :meth:`_replace`); kept idle
+        if the caller is cancelled meanwhile."""
+        started = asyncio.get_running_loop().run_in_executor(None, self._spawn)
+        try:
+            return await asyncio.shield(started)
+        except asyncio.CancelledError:
+            started.add_done_callback(self._keep_idle)
+            raise
+
+    async def _take_worker(self) -> _Worker:
         while self._idle:
             worker = self._idle.pop()
             # An idle process never has anything to say: a readable pipe is its end (EOF).
@@ -226,7 +247,7 @@ class Lane(Gate):
             log.error("an idle %s process died (exit code %s)", self.name, worker.process.exitcode)
             self._metrics.worker_restarts.inc()
             self._discard(worker)
-        return self._spawn()
+        return await self._start_process()
 
     def _discard(self, worker: _Worker, *, kill: bool = False) -> None:
         if kill and worker.process.is_alive():
@@ -279,13 +300,13 @@ class Lane(Gate):
     ) -> T:
         if self._closed:
             raise ApiError(503, "shutting_down", "the service is stopping; retry", None)
-        worker = self._take_worker()
+        worker = await self._take_worker()
         try:
             worker.connection.send((function, args))
         except (BrokenPipeError, OSError):  # died since: one fresh process, once
             self._metrics.worker_restarts.inc()
             self._discard(worker)
-            worker = self._spawn()
+            worker = await self._start_process()
             worker.connection.send((function, args))
         self._busy.add(worker)
         loop = asyncio.get_running_loop()

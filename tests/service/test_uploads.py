@@ -33,7 +33,7 @@ from service.app import create_app
 from service.quota import QuotaExceeded
 from service.registry import Registry
 from service.settings import Settings
-from tests.live_server import live_server
+from tests.live_process import server_process
 from tests.mesh_files import grid_mesh, grid_ply, instanced_dae, instanced_glb
 from tests.paths import gecko_cache_dir
 from tests.prometheus_text import metric_samples, sample_value
@@ -108,10 +108,19 @@ class HealthProbe:
 
 @pytest.fixture(scope="module")
 def upload_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, Path]]:
-    """A live server with small limits: 100,000 triangles, a 48 MiB quota of scenes."""
+    """The uvicorn command in its own process, as an operator runs it, with small limits:
+    100,000 triangles, a 48 MiB quota of scenes. Its own process, so that /health's latency
+    is the server's and not this test process's (whose uploading client and probe share one
+    interpreter lock)."""
     home = tmp_path_factory.mktemp("gecko-uploads")
-    with live_server(_settings(home)) as url:
-        yield url, home / "scenes"
+    limits = {
+        "GECKO_CHARACTERS": "humanoid",
+        "GECKO_MAX_UPLOAD_BYTES": str(20 * MiB),
+        "GECKO_MAX_TRIANGLES": "100000",
+        "GECKO_SCENES_QUOTA_BYTES": str(QUOTA_BYTES),
+    }
+    with server_process(home, env=limits) as server:
+        yield server.url, home / "scenes"
 
 
 def test_oversized_files_are_refused_before_parsing_while_health_answers(
