@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 from planner import budgets
 from planner.character import MAX_PITCH, Character
 from planner.contact.context import ContactParams, make_context
+from planner.contact.heading import face_the_way
 from planner.contact.reachability import ReachabilityChecker
 from planner.contact.root_path import RootPath, plan_root_path
 from planner.contact.root_sampler import OrientationBounds
@@ -336,6 +337,12 @@ def plan_contact_motion(
             poses = path.value.resample(opts.sequence.spacing)
             if max_pitch > LEVEL_PITCH:
                 poses = follow_slope(checker, poses, max_pitch=max_pitch)
+            elif len(start_state.value.contacts) == 2:
+                # a searched path's yaws are drawn at random: a biped faces its way (its feet
+                # turn with its pelvis only as far as its hips' yaw goes; a quadruped's legs
+                # stand at its body's corners whatever its heading, and HyQ turned to face
+                # its detour round the debris tilted 24 degrees instead of 11)
+                poses = face_the_way(checker, poses, path.value.length / (len(poses) - 1))
         # after a walk stalled unable to release a leg it left behind (its body stretched
         # over it), the retries keep the legs behind the body releasable; elsewhere the guard
         # would only cost steps that lead on (rubble_quadruped's plan at its seed)

@@ -370,8 +370,13 @@ FURTHER_SEEDS = (
     # into the rock stepping up, before footholds kept 3 cm of free radius above them
     ("rubble_quadruped", 7),
     # walked on twice from where its first walk stalled, then started over: four walks
-    # stalled with a fifth of the search spent before a fifth and sixth walk were allowed
+    # stalled with a fifth of the search spent before a fifth and sixth walk were allowed;
+    # later, reaching for a stair's foothold, the body dropped 0.26 m and tilted its trunk
+    # 57 degrees, and no motion could follow (a state's trunk is now bounded)
     ("hpp_stair_bauzil_talos", 11),
+    # the searched guide turned Talos 30 to 56 degrees off the way it climbed, its hips at
+    # their yaw and roll limits: a stance foot slipped 8 mm (the guide now faces its way)
+    ("hpp_stair_bauzil_talos", 9),
 )
 
 
