@@ -233,10 +233,14 @@ class Lane(Gate):
         if the caller is cancelled meanwhile."""
         started = asyncio.get_running_loop().run_in_executor(None, self._spawn)
         try:
-            return await asyncio.shield(started)
+            worker = await asyncio.shield(started)
         except asyncio.CancelledError:
             started.add_done_callback(self._keep_idle)
             raise
+        if self._closed:  # the lane shut down while the process started: it goes too
+            self._discard(worker, kill=True)
+            raise ApiError(503, "shutting_down", "the service is stopping; retry", None)
+        return worker
 
     async def _take_worker(self) -> _Worker:
         while self._idle:

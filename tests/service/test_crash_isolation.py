@@ -254,6 +254,8 @@ def test_sigterm_during_a_request_stops_the_tree(tmp_path: Path) -> None:
     with server_process(tmp_path / "home", grace_s=2) as server:
         running = Call("POST", f"{server.url}/v1/jumps", LONG_JUMP)
         wait_until(lambda: _lane(server.url, "gecko_lane_running") == 1, "the jump runs")
+        # the lane's process starts off the event loop: the jump runs once it is there
+        wait_until(lambda: server.compute_processes()[server.pid], "the jump's process")
         _stop_and_check_tree(server)
         # The client is not left hanging: an error answer or a closed connection.
         with contextlib.suppress(httpx.HTTPError):  # or a closed connection
