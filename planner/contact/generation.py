@@ -50,6 +50,7 @@ from planner.kinematics import (
     project_contact,
     solve_ik,
 )
+from planner.kinematics.model import has_free_flyer_root
 from planner.scene import Surface
 from planner.scene.geometry2d import plane_basis
 from planner.shapes import Capsule
@@ -68,10 +69,12 @@ __all__ = [
     "maintain",
     "make_context",
     "stand_state",
+    "stand_up",
     "state_from_configuration",
 ]
 
 _HOLD_TOL = 1e-3  # m, a held contact further than this from its placement is lost
+BENT_CHEST = 0.2  # rad: a chest joint this far from the reference is bent (stand_up)
 MAX_TRUNK_TILT = np.radians(45.0)
 """rad the root may tilt from the vertical in a state made by a whole-body reach, beyond the
 character's ``max_pitch``: the motion keeps such a trunk near level, so a state further over
@@ -149,19 +152,85 @@ def balance_ik(
     axes: tuple[bool, bool, bool] = (True, True, True),
     moving: Sequence[str] = (),
     keep_orientation: bool = False,
+    chest_still: bool = False,
 ) -> IkResult:
     """Whole-body IK: hold ``contacts``, COM to ``com`` (3,), then ``extra`` and the posture
-    (with ``keep_orientation``, the root's orientation in ``q`` is part of it)."""
+    (with ``keep_orientation``, the root's orientation in ``q`` is part of it); with
+    ``chest_still`` the joints of no limb (a chest's, a head's) keep their values in ``q``."""
     tasks: list[Task] = [*hold_tasks(contacts, ctx), ComTask(com, axes), *extra]
     tasks.append(posture_task(ctx, root_from=np.asarray(q) if keep_orientation else None))
+    active = active_dofs(ctx, [*(c.limb for c in contacts), *moving])
+    if chest_still:
+        active = np.setdiff1d(active, chest_dofs(ctx)).astype(np.int64)
     return solve_ik(
         ctx.model,
         q,
         tasks,
         data=ctx.pin_data,
-        active=active_dofs(ctx, [*(c.limb for c in contacts), *moving]),
+        active=active,
         max_iterations=ctx.params.ik_iterations,
     )
+
+
+def chest_dofs(ctx: ContactContext) -> NDArray[np.int64]:
+    """Velocity indices (k,) of the joints of no limb past the root (a chest's, a head's)."""
+    root = int(ctx.model.nvs[1]) if has_free_flyer_root(ctx.model) else 0
+    used = np.zeros(ctx.model.nv, dtype=bool)
+    used[:root] = True
+    for spec in ctx.character.limbs:
+        used[spec.idx_v] = True
+    return np.flatnonzero(~used).astype(np.int64)
+
+
+def _carried_by_chest(ctx: ContactContext, limb: str) -> bool:
+    """Whether a joint of no limb carries ``limb`` (an arm on a chest, not a leg)."""
+    model = ctx.model
+    chest = set(chest_dofs(ctx).tolist())
+    joint = int(model.parents[int(ctx.character.limb(limb).joint_ids[0])])
+    while joint > 1:
+        if int(model.idx_vs[joint]) in chest:
+            return True
+        joint = int(model.parents[joint])
+    return False
+
+
+def stand_up(ctx: ContactContext, state: ContactState) -> ContactState:
+    """``state`` with its chest and free arms back at the reference posture, its COM where it
+    was and its contacts held by the legs and root alone, when its chest is bent (a joint
+    ``BENT_CHEST`` or more from the reference), no contact it holds is carried by the chest
+    (the hands have let go) and that makes a valid state; else ``state`` itself. The
+    end of a climb: the chest bent over the wall to reach stands up once the hands let go."""
+    chest_q = _chest_q(ctx)
+    reference = np.asarray(ctx.character.q_ref)[chest_q]
+    if (
+        len(chest_q) == 0
+        or np.abs(np.asarray(state.q)[chest_q] - reference).max() < BENT_CHEST
+        or any(_carried_by_chest(ctx, c.limb) for c in state.contacts)
+    ):
+        return state
+    q = np.array(state.q)
+    q[chest_q] = reference
+    for spec in ctx.character.limbs:  # the free arms hang again (they reached with the chest)
+        if state.contact(spec.name) is None and _carried_by_chest(ctx, spec.name):
+            q[spec.idx_q] = np.asarray(ctx.character.q_ref)[spec.idx_q]
+    res = balance_ik(ctx, q, state.contacts, com_of(ctx, state.q), chest_still=True)
+    straight = ContactState(np.array(res.q), state.contacts)
+    if not _holds(ctx, straight.q, state.contacts) or not check_state(ctx, straight).valid:
+        return state
+    return straight
+
+
+def _chest_q(ctx: ContactContext) -> NDArray[np.int64]:
+    """Configuration indices (k,) of the joints of no limb past the root."""
+    model = ctx.model
+    chest = set(chest_dofs(ctx).tolist())
+    out = [
+        int(model.idx_qs[j]) + i
+        for j in range(2, model.njoints)
+        if int(model.idx_vs[j]) in chest
+        for i in range(int(model.nqs[j]))
+    ]
+    return np.array(out, dtype=np.int64)
 
 
 def active_dofs(ctx: ContactContext, limbs: Sequence[str]) -> NDArray[np.int64]:

@@ -14,7 +14,8 @@ from numpy.typing import NDArray
 
 from planner import budgets
 from planner.character import MAX_PITCH, Character
-from planner.contact.context import ContactParams, make_context
+from planner.contact.context import ContactContext, ContactParams, make_context
+from planner.contact.generation import stand_up
 from planner.contact.heading import face_the_way
 from planner.contact.reachability import ReachabilityChecker
 from planner.contact.root_path import RootPath, plan_root_path
@@ -377,7 +378,7 @@ def plan_contact_motion(
             best = (sequence, poses, path)
     assert best is not None
     sequence, poses, path = best
-    states = sequence.value or (start_state.value,)
+    states = _standing_up(ctx, sequence.value or (start_state.value,))
     budget.charge(budgets.COM_STATE_UNITS * len(states))  # the COM trajectory, never cut
     goal_reached = goal_state.value
     avoided: list[tuple[str, FloatArray]] = []
@@ -461,7 +462,7 @@ def plan_contact_motion(
                 if again.value is not None and (
                     again.status is PlanStatus.SOLVED or sequence.status is not PlanStatus.SOLVED
                 ):
-                    return (*planned[:origin], *again.value)
+                    return _standing_up(ctx, (*planned[:origin], *again.value))
         return None
 
     motion = sequence_motion(
@@ -488,3 +489,9 @@ def plan_contact_motion(
         message = f"whole-body motion: {shortfall}"
     stats = {**path.stats, **sequence.stats, "attempts": attempts, **budget_stats()}
     return PlanResult(status, ContactPlan(states, poses, motion, timings), stats, capped(message))
+
+
+def _standing_up(ctx: ContactContext, states: Sequence[ContactState]) -> tuple[ContactState, ...]:
+    """``states`` with the last one's chest stood up (``generation.stand_up``): a plan ends
+    standing, not bent over the hand holds it has let go."""
+    return (*states[:-1], stand_up(ctx, states[-1])) if states else tuple(states)

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import pinocchio as pin
 from numpy.typing import NDArray
 
 import trajectory
@@ -23,7 +24,7 @@ from planner.character import Character
 from planner.kinematics import com_position, frame_placement
 from planner.motion import tuning
 from planner.motion.builder import BuiltMotion, MotionReport, build_motion
-from planner.motion.spec import MotionPhase, MotionSpec, Swing, natural_posture
+from planner.motion.spec import MotionPhase, MotionSpec, Swing, natural_posture, torso_columns
 from planner.motion.types import ComSegment, Keyframe, Phase
 from planner.offline import OfflineData
 from planner.termination import Termination, never
@@ -230,23 +231,49 @@ def user_transitions(
     return placed, report
 
 
+def _chest_turn_s(character: Character, states: Sequence[ContactState], k: int) -> float:
+    """s the chest takes, at ``CHEST_SPEED``, to stand back up to the reference posture where
+    state ``k`` or the next one has it there after a bent one (the contact planner
+    straightens the chest when the last hand lets go: ``generation._straightened``); 0
+    elsewhere (the states' own chest sway is not followed by the tracker, which holds the
+    chest near the reference) and for a character without a chest. It stands up in the
+    phase before that state or the one after (while the hand lets go, or once it has)."""
+    model = character.model
+    columns = torso_columns(character, int(model.nvs[1]))
+    if not columns:
+        return 0.0
+    reference = np.asarray(character.q_ref)
+    turn = 0.0
+    for a, b in ((k - 1, k), (k, k + 1)):
+        if a < 0 or b >= len(states):
+            continue
+        after = np.asarray(states[b].q)
+        if np.abs(pin.difference(model, reference, after)[columns]).max() > 1e-9:
+            continue
+        step = pin.difference(model, np.asarray(states[a].q), after)
+        turn = max(turn, float(np.abs(step[columns]).max()))
+    return turn / tuning.CHEST_SPEED
+
+
 def swing_durations(
     character: Character, states: Sequence[ContactState], speed: float = 1.0
 ) -> list[float]:
     """Per state, the shortest its phase may last (s): a phase whose limb swings to the next
     state's contact gets ``MIN_SWING_S`` or the swing distance at ``SWING_SPEED``, whichever
-    is longer, other phases ``MIN_SHIFT_S``; all divided by ``speed``."""
+    is longer, other phases ``MIN_SHIFT_S``; all divided by ``speed``; and at least the
+    chest's turn to the next state's posture (:func:`_chest_turn_s`)."""
     out = []
     for k, state in enumerate(states):
+        chest = _chest_turn_s(character, states, k)
         limb = _swinging_limb(states, k)
         if limb is None:
-            out.append(tuning.MIN_SHIFT_S / speed)
+            out.append(max(tuning.MIN_SHIFT_S / speed, chest))
             continue
         target = states[k + 1].contact(limb)
         assert target is not None
         start = _last_placement(character, states, k, limb, state.q)
         reach = float(np.linalg.norm(np.asarray(target.placement)[:3, 3] - start[:3, 3]))
-        out.append(max(tuning.MIN_SWING_S, reach / tuning.SWING_SPEED) / speed)
+        out.append(max(max(tuning.MIN_SWING_S, reach / tuning.SWING_SPEED) / speed, chest))
     return out
 
 
@@ -255,8 +282,9 @@ def dynamic_durations(
 ) -> list[float]:
     """Per state, how long its phase lasts when the COM moves dynamically (s): a swing
     ``DYNAMIC_MIN_SWING_S`` or its distance at ``DYNAMIC_SWING_SPEED``, whichever is longer,
-    a shift ``DYNAMIC_SHIFT_S``, all divided by ``speed``; the first and last phase at least
-    ``DYNAMIC_END_S`` whatever the speed."""
+    a shift ``DYNAMIC_SHIFT_S``, all divided by ``speed``, and at least the chest's turn
+    (:func:`_chest_turn_s`); the first and last phase at least ``DYNAMIC_END_S`` whatever
+    the speed."""
     out = []
     for k, state in enumerate(states):
         limb = _swinging_limb(states, k)
@@ -267,7 +295,7 @@ def dynamic_durations(
             start = _last_placement(character, states, k, limb, state.q)
             reach = float(np.linalg.norm(np.asarray(target.placement)[:3, 3] - start[:3, 3]))
             duration = max(tuning.DYNAMIC_MIN_SWING_S, reach / tuning.DYNAMIC_SWING_SPEED)
-        duration /= speed
+        duration = max(duration / speed, _chest_turn_s(character, states, k))
         if k in (0, len(states) - 1):  # starting from rest and stopping take their time
             duration = max(duration, tuning.DYNAMIC_END_S)
         out.append(duration)

@@ -133,6 +133,13 @@ class MotionSpec:
                 raise ValueError("phases must be contiguous and in time order")
 
 
+def torso_columns(character: Character, root_nv: int) -> list[int]:
+    """Tangent indices (sorted) of the joints of no limb (a chest's, a head's), past the
+    root's ``root_nv``."""
+    used = {int(i) for limb in character.limbs for i in limb.idx_v}
+    return [i for i in range(root_nv, character.model.nv) if i not in used]
+
+
 def natural_posture(character: Character, q: FloatArray, keep: Sequence[str]) -> FloatArray:
     """(nq,) posture to head for: ``q`` (nq,) for the root and the limbs in ``keep`` (those
     in contact or swinging), the character's reference posture for every other joint (free

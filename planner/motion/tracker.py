@@ -56,6 +56,7 @@ from planner.motion.clearance import (
     shape_poses,
     support_masks,
 )
+from planner.motion.spec import torso_columns
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -162,13 +163,6 @@ def trunk_orientation_cost(character: Character) -> float:
     if character.max_pitch <= tuning.LEVEL_TRUNK_PITCH:
         return tuning.TRUNK_COST
     return tuning.PITCHING_TRUNK_COST
-
-
-def _torso_columns(character: Character, root_nv: int) -> list[int]:
-    """Tangent indices (sorted) of the joints of no limb (a chest's, a head's), past the
-    root's ``root_nv``."""
-    used = {int(i) for limb in character.limbs for i in limb.idx_v}
-    return [i for i in range(root_nv, character.model.nv) if i not in used]
 
 
 def _nonzero(
@@ -298,7 +292,7 @@ def _character_terms(character: Character) -> _CharacterTerms:
     # the cost's constant diagonal: the posture task's weight on the joints (its Jacobian
     # is the identity there) and the damping everywhere
     posture_weights = np.full(model.nv - root_nv, tuning.POSTURE_COST**2)
-    torso = [i - root_nv for i in _torso_columns(character, root_nv)]
+    torso = [i - root_nv for i in torso_columns(character, root_nv)]
     posture_weights[torso] = tuning.TORSO_POSTURE_COST**2
     diagonal = np.full(model.nv, tuning.DAMPING)
     diagonal[root_nv:] += posture_weights

@@ -5,14 +5,22 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from planner.contact.checks import check_state, contact_on_surface, effector_pose, hold_error
+from planner.contact.checks import (
+    check_state,
+    com_of,
+    contact_on_surface,
+    effector_pose,
+    hold_error,
+)
 from planner.contact.context import ContactContext, FailureReason
 from planner.contact.generation import (
+    balance_ik,
     break_contact,
     character_obstacles,
     create_contact,
     maintain,
     stand_state,
+    stand_up,
     state_from_configuration,
 )
 from planner.contact.state import ContactState
@@ -158,3 +166,28 @@ def test_state_from_configuration_round_trip() -> None:
     assert not bad.ok and bad.reason is FailureReason.INVALID_STATE
     wrong = state_from_configuration(ctx, state.q, {"tail": None})
     assert wrong.reason is FailureReason.UNKNOWN_LIMB
+
+
+def test_a_bent_chest_stands_up_once_the_hands_are_free() -> None:
+    """stand_up: a state on its feet whose chest is bent over and whose arms reach forward
+    gets its chest and free arms back at the reference posture, the feet held, the COM where
+    it was, still valid; a state already upright is returned as it is."""
+    ctx, state = _flat_state("humanoid")
+    model, reference = ctx.model, np.asarray(ctx.character.q_ref)
+    chest = [int(model.idx_qs[model.getJointId(n)]) for n in ("torso_yaw", "torso_pitch")]
+    arms = [i for n in ("left_hand", "right_hand") for i in ctx.character.limb(n).idx_q]
+    assert stand_up(ctx, state) is state
+    bent_q = np.array(state.q)
+    bent_q[chest[1]] = 0.5
+    shoulders = [ctx.character.limb(n).idx_q[0] for n in ("left_hand", "right_hand")]
+    bent_q[shoulders] = reference[shoulders] - 0.3  # the arms reach forward
+    bent = balance_ik(ctx, bent_q, state.contacts, com_of(ctx, state.q), chest_still=True)
+    leaning = ContactState(np.array(bent.q), state.contacts)
+    assert check_state(ctx, leaning).valid
+    upright = stand_up(ctx, leaning)
+    assert upright is not leaning
+    np.testing.assert_allclose(upright.q[chest], reference[chest], atol=1e-12)
+    np.testing.assert_allclose(upright.q[arms], reference[arms], atol=1e-12)
+    assert hold_error(ctx, upright.q, upright.contacts) < 1e-3
+    assert np.linalg.norm(com_of(ctx, upright.q) - com_of(ctx, leaning.q)) < 1e-3
+    assert check_state(ctx, upright).valid

@@ -20,6 +20,7 @@ from planner.kinematics import (
     com_position,
     solve_ik,
 )
+from planner.motion import tuning
 from planner.motion.builder import keyframe_grid
 from planner.motion.sequence import (
     Timing,
@@ -27,6 +28,7 @@ from planner.motion.sequence import (
     _rest_window,
     contact_phase,
     dynamic_com,
+    dynamic_durations,
     sequence_motion,
     swing_durations,
     timed_com,
@@ -268,3 +270,23 @@ def test_a_fallback_keeps_the_replanned_changes_only_when_they_play_clean(
         assert motion.states == states
         assert not motion.quality.complete
         assert replans[-1].endswith("all undone")
+
+
+def test_a_chest_standing_back_up_takes_its_time() -> None:
+    """A state whose chest stands back up to the reference after a bent one (the end of a
+    climb) gives the phases on either side of it time for the chest to turn at CHEST_SPEED;
+    a chest that sways elsewhere does not slow anything."""
+    character, _ = character_and_data("humanoid")
+    model = character.model
+    pitch = int(model.idx_qs[model.getJointId("torso_pitch")])
+    bent, straight, swayed = (np.array(character.q_ref) for _ in range(3))
+    bent[pitch], swayed[pitch] = 0.8, 0.3
+    states = [ContactState(q, ()) for q in (bent, straight, swayed)]
+    turn_s = 0.8 / tuning.CHEST_SPEED
+    for durations in (
+        swing_durations(character, states),
+        dynamic_durations(character, states),
+    ):
+        assert durations[0] >= turn_s - 1e-9 and durations[1] >= turn_s - 1e-9
+        assert durations[2] < turn_s  # the sway after it is not timed (0.3 rad, at rest)
+    assert max(swing_durations(character, [states[2], states[0]])) < turn_s
