@@ -51,6 +51,7 @@ from planner.kinematics import (
     solve_ik,
 )
 from planner.kinematics.model import has_free_flyer_root
+from planner.motion.spec import torso_columns
 from planner.scene import Surface
 from planner.scene.geometry2d import plane_basis
 from planner.shapes import Capsule
@@ -175,11 +176,7 @@ def balance_ik(
 def chest_dofs(ctx: ContactContext) -> NDArray[np.int64]:
     """Velocity indices (k,) of the joints of no limb past the root (a chest's, a head's)."""
     root = int(ctx.model.nvs[1]) if has_free_flyer_root(ctx.model) else 0
-    used = np.zeros(ctx.model.nv, dtype=bool)
-    used[:root] = True
-    for spec in ctx.character.limbs:
-        used[spec.idx_v] = True
-    return np.flatnonzero(~used).astype(np.int64)
+    return np.array(torso_columns(ctx.character, root), dtype=np.int64)
 
 
 def _carried_by_chest(ctx: ContactContext, limb: str) -> bool:
