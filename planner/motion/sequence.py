@@ -231,28 +231,27 @@ def user_transitions(
     return placed, report
 
 
-def _chest_turn_s(character: Character, states: Sequence[ContactState], k: int) -> float:
-    """s the chest takes, at ``CHEST_SPEED``, to stand back up to the reference posture where
-    state ``k`` or the next one has it there after a bent one (the contact planner
-    straightens the chest when the last hand lets go: ``generation._straightened``); 0
-    elsewhere (the states' own chest sway is not followed by the tracker, which holds the
-    chest near the reference) and for a character without a chest. It stands up in the
-    phase before that state or the one after (while the hand lets go, or once it has)."""
+def _chest_turns_s(character: Character, states: Sequence[ContactState]) -> list[float]:
+    """Per state, the s the chest takes at ``CHEST_SPEED`` to stand back up to the reference
+    posture where that state or the next one has it there after a bent one (the contact
+    planner stands the chest up once the hands let go: ``generation.stand_up``); it stands
+    up in the phase before that state or the one after (while the hand lets go, or once it
+    has). 0 elsewhere (the states' own chest sway is not followed by the tracker, which holds
+    the chest near the reference) and for a character without a chest."""
     model = character.model
     columns = torso_columns(character, int(model.nvs[1]))
+    out = [0.0] * len(states)
     if not columns:
-        return 0.0
+        return out
     reference = np.asarray(character.q_ref)
-    turn = 0.0
-    for a, b in ((k - 1, k), (k, k + 1)):
-        if a < 0 or b >= len(states):
-            continue
+    for b in range(1, len(states)):
         after = np.asarray(states[b].q)
         if np.abs(pin.difference(model, reference, after)[columns]).max() > 1e-9:
             continue
-        step = pin.difference(model, np.asarray(states[a].q), after)
-        turn = max(turn, float(np.abs(step[columns]).max()))
-    return turn / tuning.CHEST_SPEED
+        step = pin.difference(model, np.asarray(states[b - 1].q), after)
+        seconds = float(np.abs(step[columns]).max()) / tuning.CHEST_SPEED
+        out[b - 1], out[b] = max(out[b - 1], seconds), max(out[b], seconds)
+    return out
 
 
 def swing_durations(
@@ -261,10 +260,11 @@ def swing_durations(
     """Per state, the shortest its phase may last (s): a phase whose limb swings to the next
     state's contact gets ``MIN_SWING_S`` or the swing distance at ``SWING_SPEED``, whichever
     is longer, other phases ``MIN_SHIFT_S``; all divided by ``speed``; and at least the
-    chest's turn to the next state's posture (:func:`_chest_turn_s`)."""
+    chest's standing up (:func:`_chest_turns_s`)."""
     out = []
+    turns = _chest_turns_s(character, states)
     for k, state in enumerate(states):
-        chest = _chest_turn_s(character, states, k)
+        chest = turns[k]
         limb = _swinging_limb(states, k)
         if limb is None:
             out.append(max(tuning.MIN_SHIFT_S / speed, chest))
@@ -283,9 +283,10 @@ def dynamic_durations(
     """Per state, how long its phase lasts when the COM moves dynamically (s): a swing
     ``DYNAMIC_MIN_SWING_S`` or its distance at ``DYNAMIC_SWING_SPEED``, whichever is longer,
     a shift ``DYNAMIC_SHIFT_S``, all divided by ``speed``, and at least the chest's turn
-    (:func:`_chest_turn_s`); the first and last phase at least ``DYNAMIC_END_S`` whatever
+    (:func:`_chest_turns_s`); the first and last phase at least ``DYNAMIC_END_S`` whatever
     the speed."""
     out = []
+    turns = _chest_turns_s(character, states)
     for k, state in enumerate(states):
         limb = _swinging_limb(states, k)
         duration = tuning.DYNAMIC_SHIFT_S
@@ -295,7 +296,7 @@ def dynamic_durations(
             start = _last_placement(character, states, k, limb, state.q)
             reach = float(np.linalg.norm(np.asarray(target.placement)[:3, 3] - start[:3, 3]))
             duration = max(tuning.DYNAMIC_MIN_SWING_S, reach / tuning.DYNAMIC_SWING_SPEED)
-        duration = max(duration / speed, _chest_turn_s(character, states, k))
+        duration = max(duration / speed, turns[k])
         if k in (0, len(states) - 1):  # starting from rest and stopping take their time
             duration = max(duration, tuning.DYNAMIC_END_S)
         out.append(duration)

@@ -360,8 +360,9 @@ DYNAMIC_SWING_SPEED = 1.2
 ``DYNAMIC_SLOWDOWNS``: a long reach gets more than ``DYNAMIC_MIN_SWING_S``."""
 
 CHEST_SPEED = 1.0
-"""rad/s: the chest's joints turn at most this fast between two states' postures (the
-phase between them lasts long enough): a humanoid that climbed with its chest bent 0.9 rad
+"""rad/s: the chest's joints turn at most this fast where a plan's chest stands back up to
+the reference posture (``generation.stand_up``; the phases on either side of that state
+last long enough): a humanoid that climbed with its chest bent 0.9 rad
 over the wall let go with its last hand and stood on the top 0.5 s later, still bent 64
 degrees (the tracker's chest cannot straighten faster than its posture pull)."""
 
