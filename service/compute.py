@@ -418,7 +418,11 @@ def run_jumps(request_json: str, seed: int, deadline: float | None = None) -> di
         phases=[convert.phase_out(p) for p in (plan.phases if plan else ())],
         com=[convert.com_segment_out(s) for s in (plan.com if plan else ())],
         report=(
-            {**plan.report.as_dict(), "nodes_refused": int(result.stats.get("nodes_refused", 0))}
+            {
+                **plan.report.as_dict(),
+                "nodes_refused": int(result.stats.get("nodes_refused", 0)),
+                "jumps_refused": int(result.stats.get("jumps_refused", 0)),
+            }
             if plan and plan.report
             else {}
         ),

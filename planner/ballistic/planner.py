@@ -14,12 +14,13 @@ by id.
 
 from __future__ import annotations
 
+import bisect
 import hashlib
 import json
 import os
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -45,10 +46,11 @@ from planner.character import Character
 from planner.contact.body import contact_points
 from planner.contact.state import ContactState, LimbContact
 from planner.kinematics import com_position
-from planner.motion import ComSegment, Keyframe, Phase
-from planner.motion.builder import BuiltMotion, MotionReport
+from planner.motion import ComSegment, Keyframe, Phase, tuning
+from planner.motion.builder import BuiltMotion, MotionReport, build_motion
 from planner.motion.checker import KeyframeChecker
-from planner.motion.jump import JumpLeg, JumpTiming, build_jumps
+from planner.motion.jump import JumpLeg, JumpTiming, jump_spec
+from planner.motion.spec import MotionSpec
 from planner.offline import OfflineData
 from planner.result import PlanResult, PlanStatus
 from planner.scene import Scene
@@ -319,6 +321,12 @@ def plan_jumps(
     INVALID_GOAL (no valid node there, or no jump leaves / reaches it); INFEASIBLE (not
     connected); TIMEOUT (``until`` fired before the query ended).
 
+    The roadmap checks the trunk along each parabola: a path whose whole-body motion holds a
+    keyframe the builder's checker refuses, or a push or landing beyond the legs' reach or
+    the contact cone, has its first such jump refused and the roadmap is asked again, at
+    most ``tuning.JUMP_REPLANS`` times (``stats["jumps_refused"]``); the cleanest answer
+    found is returned (APPROXIMATE, with the reasons, when none is clean).
+
     The work is counted, not timed: the roadmap's size (``params.n_nodes``) decides what is
     built. A ``Deadline`` ``until`` is only a wall-clock cap (the build gets
     ``params.build_share`` of it): when it stops the work, ``stats["clock_cap_hit"]`` is 1
@@ -388,48 +396,119 @@ def plan_jumps(
 
     mark = time.perf_counter()
     stances = _NodeStances(model, data, roadmap)
-    found = roadmap.query(
-        start_node,
-        goal_node,
-        collides_many=model.collider,
-        node_clear=stances.clear,
-        until=until,
-    )
-    timings["query"] = time.perf_counter() - mark
-    if found.value is None:
-        timings["total"] = time.perf_counter() - clock
+    refused: list[tuple[int, int]] = []
+    best: tuple[tuple[int, int, int], JumpPlan, list[str], PlanResult[JumpPath]] | None = None
+    unbuilt: tuple[_PathMotion, PlanResult[JumpPath]] | None = None
+    timings["keyframes"] = 0.0
+    for attempt in range(tuning.JUMP_REPLANS + 1):
+        found = roadmap.query(
+            start_node,
+            goal_node,
+            collides_many=model.collider,
+            node_clear=stances.clear,
+            refused=refused,
+            until=until,
+        )
+        if found.value is None:
+            break
+        path = found.value
+        keyframes_mark = time.perf_counter()
+        planned = _path_motion(model, params, path, start_node, goal_node, stances)
+        beyond = planned.beyond_the_body()
+        if beyond is not None and attempt < tuning.JUMP_REPLANS:
+            # a push or landing beyond the legs' reach or the contact cone: refused before
+            # the builder runs
+            unbuilt = unbuilt or (planned, found)
+            refused.append((int(path.nodes[beyond]), int(path.nodes[beyond + 1])))
+            timings["keyframes"] += time.perf_counter() - keyframes_mark
+            continue
+        plan, problems, unplayable, score = _animated(model, roadmap, planned, len(refused), until)
+        timings["keyframes"] += time.perf_counter() - keyframes_mark
+        if best is None or score < best[0]:
+            best = (score, plan, problems, found)
+        if not problems or unplayable is None or plan.report is None or plan.report.cut_short:
+            break
+        # the roadmap checks the trunk only: a jump whose whole-body motion the builder
+        # cannot play cleanly is refused and the query asked again (jump paper section 5)
+        refused.append((int(path.nodes[unplayable]), int(path.nodes[unplayable + 1])))
+    if best is None and unbuilt is not None:
+        # every path found went beyond the body: the first, animated, says so
+        planned, found = unbuilt
+        keyframes_mark = time.perf_counter()
+        plan, problems, _, score = _animated(model, roadmap, planned, 0, until)
+        timings["keyframes"] += time.perf_counter() - keyframes_mark
+        best = (score, plan, problems, found)
+    timings["query"] = time.perf_counter() - mark - timings["keyframes"]
+    timings["total"] = time.perf_counter() - clock
+    stats["jumps_refused"] = len(refused)
+    if best is None:
         stats.update(found.stats)
         stats.update(timings)
-        message = capped(found.message)
-        return PlanResult(found.status, None, stats, message)
-    path = found.value
-
-    mark = time.perf_counter()
-    jumps, motion = _synthesise(model, params, path, start_node, goal_node, stances, until)
-    timings["keyframes"] = time.perf_counter() - mark
-    timings["total"] = time.perf_counter() - clock
-    report = motion.report
-    plan = JumpPlan(
-        jumps, motion.keyframes, dict(timings), path, roadmap, motion.phases, motion.com, report
-    )
+        return PlanResult(found.status, None, stats, capped(found.message))
+    _, plan, problems, found = best
+    plan = replace(plan, timings=dict(timings))
     stats.update(found.stats)
     stats.update(timings)
-    problems = [f"whole-body motion: {report.shortfall()}"] if not report.complete else []
-    problems += [
-        f"jump {i}: the {what} needs a force outside the contact cone"
-        for i, j in enumerate(jumps)
-        for what, ok in (("push", j.push_in_cone), ("landing", j.landing_in_cone))
-        if not ok
-    ]
-    problems += [
-        f"jump {i}: the {what} needs the COM to travel beyond the legs' reach"
-        for i, j in enumerate(jumps)
-        for what, ok in (("push", j.push_in_reach), ("landing", j.landing_in_reach))
-        if not ok
-    ]
     if problems:
         return PlanResult(PlanStatus.APPROXIMATE, plan, stats, capped("; ".join(problems)))
     return PlanResult(PlanStatus.SOLVED, plan, stats, capped(found.message))
+
+
+def _animated(
+    model: ReducedModel,
+    roadmap: Roadmap,
+    planned: _PathMotion,
+    refusals: int,
+    until: Termination,
+) -> tuple[JumpPlan, list[str], int | None, tuple[int, int, int]]:
+    """The plan of ``planned`` with its whole-body motion built, what keeps it from being
+    played as is (:func:`_problems`), the first jump at fault, and its score (cut short by
+    ``until`` or not, keyframes the checker refuses plus problems, then ``refusals``: lower
+    is cleaner)."""
+    motion = build_motion(model.character, model.scene.collision.bvh, planned.spec, until=until)
+    plan = JumpPlan(
+        planned.jumps,
+        motion.keyframes,
+        {},
+        planned.path,
+        roadmap,
+        motion.phases,
+        motion.com,
+        motion.report,
+    )
+    problems, unplayable = _problems(planned.jumps, motion)
+    refused_keys = sum(not check.valid for check in motion.checks)
+    score = (int(motion.report.cut_short), refused_keys + len(problems), refusals)
+    return plan, problems, unplayable, score
+
+
+def _problems(jumps: Sequence[JumpInfo], motion: BuiltMotion) -> tuple[list[str], int | None]:
+    """What keeps a jump plan's motion from being played as is, in words, and the index of
+    the first jump at fault (its crouch, push, flight or landing, or the stand after the last
+    landing, holds a keyframe the checker refuses, or it pushes or lands beyond the legs'
+    reach or the contact cone); None when no jump is (the motion was cut short)."""
+    report = motion.report
+    problems = [f"whole-body motion: {report.shortfall()}"] if not report.complete else []
+    at_fault: list[int] = []
+    for i, j in enumerate(jumps):
+        for what, in_cone, in_reach in (
+            ("push", j.push_in_cone, j.push_in_reach),
+            ("landing", j.landing_in_cone, j.landing_in_reach),
+        ):
+            if not in_cone:
+                problems.append(f"jump {i}: the {what} needs a force outside the contact cone")
+            if not in_reach:
+                problems.append(
+                    f"jump {i}: the {what} needs the COM to travel beyond the legs' reach"
+                )
+            if not (in_cone and in_reach):
+                at_fault.append(i)
+    starts = [j.t_start for j in jumps]
+    for key, check in zip(motion.keyframes, motion.checks, strict=True):
+        if not check.valid and starts:
+            at_fault.append(max(0, bisect.bisect_right(starts, key.t) - 1))
+            break
+    return problems, (min(at_fault) if at_fault else None)
 
 
 def _point(spec: FloatArray) -> FloatArray:
@@ -475,16 +554,36 @@ class _NodeStances:
         return self.of(self.roadmap.nodes, i, i)[1]
 
 
-def _synthesise(
+@dataclass(frozen=True, slots=True)
+class _PathMotion:
+    """A roadmap path's jumps (of the COM) and the motion spec that animates them, before
+    the builder runs: ``jumps`` as the timing makes them (the landing where the motion
+    makes its contacts), ``spec`` the builder's input."""
+
+    path: JumpPath
+    jumps: tuple[JumpInfo, ...]
+    spec: MotionSpec
+
+    def beyond_the_body(self) -> int | None:
+        """The first jump whose push or landing needs a force outside its cone or a COM
+        travel beyond the legs' reach (None: none)."""
+        for i, j in enumerate(self.jumps):
+            if not (
+                j.push_in_cone and j.push_in_reach and j.landing_in_cone and j.landing_in_reach
+            ):
+                return i
+        return None
+
+
+def _path_motion(
     model: ReducedModel,
     params: JumpParams,
     path: JumpPath,
     start: RoadmapNodes,
     goal: RoadmapNodes,
     stances: _NodeStances,
-    until: Termination,
-) -> tuple[tuple[JumpInfo, ...], BuiltMotion]:
-    """Jump descriptions (of the COM) and the whole-body motion along a roadmap path."""
+) -> _PathMotion:
+    """The jumps (of the COM) along a roadmap path and the motion spec that animates them."""
     char = model.character
     states: list[ContactState] = []
     rows: list[dict[str, Any]] = []
@@ -520,9 +619,7 @@ def _synthesise(
                 params.roadmap.vimpmax,
             )
         )
-    motion, timing = build_jumps(
-        char, model.scene.collision.bvh, states, legs, rate=params.rate, until=until
-    )
+    spec, timing = jump_spec(char, states, legs, rate=params.rate)
     # the landing as the motion makes it: its contacts may be made later on the parabola
     # than the roadmap's node (the legs drawn up in flight, ``planner.motion.jump``)
     jumps = tuple(
@@ -539,7 +636,7 @@ def _synthesise(
         )
         for (takeoff, landing, apex, _), when in zip(ends, timing, strict=True)
     )
-    return jumps, motion
+    return _PathMotion(path, jumps, spec)
 
 
 def _info(

@@ -18,7 +18,7 @@ from __future__ import annotations
 import enum
 import hashlib
 import json
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from types import MappingProxyType
@@ -563,11 +563,18 @@ class Roadmap:
         *,
         collides_many: TrunkCollision | None = None,
         node_clear: Callable[[int], bool] | None = None,
+        refused: Collection[tuple[int, int]] = (),
         until: Termination = never,
     ) -> PlanResult[JumpPath]:
         """Shortest jump sequence from ``start`` to ``goal``; see ``query_roadmap``."""
         return query_roadmap(
-            self, start, goal, collides_many=collides_many, node_clear=node_clear, until=until
+            self,
+            start,
+            goal,
+            collides_many=collides_many,
+            node_clear=node_clear,
+            refused=refused,
+            until=until,
         )
 
 
@@ -690,6 +697,7 @@ def query_roadmap(
     *,
     collides_many: TrunkCollision | None = None,
     node_clear: Callable[[int], bool] | None = None,
+    refused: Collection[tuple[int, int]] = (),
     until: Termination = never,
 ) -> PlanResult[JumpPath]:
     """Connect ``start`` (outgoing) and ``goal`` (incoming) like any node, then Dijkstra.
@@ -699,7 +707,9 @@ def query_roadmap(
     dropped and the search repeats (Lazy PRM). Likewise each roadmap node on the path is
     asked once of ``node_clear`` (its index in ``roadmap.nodes``; None: every node is
     clear), and a refused node's edges are dropped: a whole-body stance that collides where
-    only the trunk was checked. The roadmap itself is not modified.
+    only the trunk was checked. The jumps of ``refused`` (pairs of node labels: a roadmap
+    index, ``START`` or ``GOAL``) are left out: jumps the caller found the body cannot play.
+    The roadmap itself is not modified.
     Statuses: SOLVED (a start equal to the goal gives zero jumps); INVALID_START / INVALID_GOAL
     when no feasible jump leaves the start / reaches the goal; INFEASIBLE when the graph does
     not connect them; TIMEOUT when ``until`` fires.
@@ -760,6 +770,10 @@ def query_roadmap(
     t = edges.t.copy()
     status = edges.status.copy()
     active = np.ones(len(edges), dtype=bool)
+    ids_of = {START: s_id, GOAL: g_id}
+    for a_label, b_label in refused:
+        a_id, b_id = ids_of.get(a_label, a_label), ids_of.get(b_label, b_label)
+        active &= ~((edges.src == a_id) & (edges.dst == b_id))
     cleared: dict[int, bool] = {}
     iterations = 0
     while True:
@@ -802,10 +816,10 @@ def query_roadmap(
             for node in chain[1:-1]:
                 if node not in cleared:
                     cleared[node] = node_clear(node)
-        refused = [node for node in chain[1:-1] if not cleared.get(node, True)]
-        if refused:
-            stats["nodes_refused"] = stats.get("nodes_refused", 0) + len(refused)
-            gone = np.isin(edges.src, refused) | np.isin(edges.dst, refused)
+        vetoed = [node for node in chain[1:-1] if not cleared.get(node, True)]
+        if vetoed:
+            stats["nodes_refused"] = stats.get("nodes_refused", 0) + len(vetoed)
+            gone = np.isin(edges.src, vetoed) | np.isin(edges.dst, vetoed)
             active &= ~gone
             continue
         stats["lazy_iterations"] = iterations

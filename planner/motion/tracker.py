@@ -81,8 +81,9 @@ class StepTargets:
     level_trunk : the trunk aims at the posture's yaw only (and its pitch for a character
     whose trunk may pitch); otherwise at the posture's own roll and pitch.
     carried : (limb, pose (4, 4)) effectors carried through a flight (swing cost, guarded
-    like a swing). exact_com : a flight: the whole body is translated so that its COM is
-    exactly ``com`` before and after the QP (the QP then only shapes the body).
+    like a swing). exact_com : a flight: the COM moves to ``com`` as an equality of the QP
+    (``StepQP.com_move``) and the whole body is translated onto it after the step (the
+    linearisation's residue).
     com_reach : m, the COM target is pulled in to this distance from the COM
     (``COM_MAX_ERROR``; unbounded for a fast COM). rigid_stance : the stance contacts are
     equality constraints of the QP, not costs. posture_led : the posture is a moving
@@ -183,11 +184,13 @@ def _nonzero(
 class StepQP:
     """The cost of one control step's QP over dq (tangent): 1/2 dq' H dq + c' dq with
     ``hessian`` H (nv, nv) and ``linear`` c (nv,); ``held``: per stance limb, its frame
-    task's Jacobian (6, nv) and error (6,) (for rigid contacts)."""
+    task's Jacobian (6, nv) and error (6,) (for rigid contacts); ``com_move``: a flight's
+    COM held to its curve exactly, ``J_com dq = c_target - c`` (J_com (3, nv), (3,) m)."""
 
     hessian: FloatArray
     linear: FloatArray
     held: dict[str, tuple[FloatArray, FloatArray]]
+    com_move: tuple[FloatArray, FloatArray] | None = None
 
 
 def _saturated(here: FloatArray, target: FloatArray, reach: float) -> FloatArray:
@@ -499,8 +502,10 @@ class WholeBodyTracker:
         q = np.array(q, dtype=np.float64)
         joints = self._joints
         q[joints] = np.minimum(np.maximum(q[joints], self._lower), self._upper)
-        if targets.exact_com:
-            q = self._onto_com(q, targets.com)
+        # a flight's COM moves along its curve as a constraint of the QP (``com_move``), so
+        # that the collision dampers see the whole body's fall; translated onto the curve
+        # before the step, a body falling past a platform's corner drove its legs 240 mm
+        # into it, unseen
         qp = self.objective(q, targets, share)
         rigid = [limb for limb, _ in targets.stance] if targets.rigid_stance else []
         # (dampers, contacts hard, free limbs' acceleration bounded): the acceleration bound
@@ -687,7 +692,8 @@ class WholeBodyTracker:
         pull = pin.difference(model, aim, q)[self._root_nv :]
         linear[self._root_nv :] += weights * gain * pull
         self.scene.set_phase(frozenset(skipped), light)
-        return StepQP(hessian, linear, held)
+        com_move = (jcom.copy(), targets.com - com) if targets.exact_com else None
+        return StepQP(hessian, linear, held, com_move)
 
     def _tilt_bound(self) -> tuple[FloatArray, FloatArray] | None:
         """The row (G (1, nv), h (1,)) keeping the trunk's tilt (its z axis from the world's)
@@ -882,24 +888,29 @@ class WholeBodyTracker:
         rigid: Sequence[str],
         smooth: bool = True,
     ) -> qpsolvers.Problem:
-        """The QP of the step over dq: the cost ``qp``, :meth:`inequalities`, and the
-        ``rigid`` limbs' stance held exactly (:meth:`_rigid_rows`)."""
+        """The QP of the step over dq: the cost ``qp``, :meth:`inequalities`, the ``rigid``
+        limbs' stance held and a flight's COM moved exactly (:meth:`_equality_rows`)."""
         g, h = self.inequalities(dt, dampers, root_bounded, smooth)
-        a, b = self._rigid_rows(qp, rigid) if rigid else (None, None)
+        held = self._equality_rows(qp, rigid)
+        a, b = held if held is not None else (None, None)
         return qpsolvers.Problem(qp.hessian, qp.linear, g, h, a, b)
 
-    def _rigid_rows(self, qp: StepQP, rigid: Sequence[str]) -> tuple[FloatArray, FloatArray]:
+    def _equality_rows(
+        self, qp: StepQP, rigid: Sequence[str]
+    ) -> tuple[FloatArray, FloatArray] | None:
         """A (k, nv), b (k,): the ``rigid`` limbs' stance held exactly, ``J_c dq = -e_c``
-        (position rows only for a point contact)."""
-        keeps = [self._rigid_keep[limb] for limb in rigid]
-        a = np.vstack([qp.held[limb][0][keep] for limb, keep in zip(rigid, keeps, strict=True)])
-        b = np.concatenate(
-            [
-                -tuning.TASK_GAIN * qp.held[limb][1][keep]
-                for limb, keep in zip(rigid, keeps, strict=True)
-            ]
-        )
-        return a, b
+        (position rows only for a point contact), and a flight's COM moved exactly
+        (``StepQP.com_move``); None when there are none."""
+        blocks = [
+            (qp.held[limb][0][keep], -tuning.TASK_GAIN * qp.held[limb][1][keep])
+            for limb in rigid
+            for keep in (self._rigid_keep[limb],)
+        ]
+        if qp.com_move is not None:
+            blocks.append(qp.com_move)
+        if not blocks:
+            return None
+        return np.vstack([a for a, _ in blocks]), np.concatenate([b for _, b in blocks])
 
     def _solve(
         self,
@@ -917,8 +928,8 @@ class WholeBodyTracker:
             lower, upper = self._bounds(dt, root_bounded, smooth)
             rows = self._damper_rows() if dampers else []
             equalities = 0
-            if rigid:
-                held = self._rigid_rows(qp, rigid)
+            held = self._equality_rows(qp, rigid)
+            if held is not None:
                 rows.append(held)
                 equalities = len(held[1])
             x = _solve_daqp(qp.hessian, qp.linear, lower, upper, rows, equalities)

@@ -97,6 +97,7 @@ async def test_roadmap_build_persist_and_jump(
     assert body["phases"] and body["com"]
     assert body["report"]["phases_animated"] == len(body["phases"])
     assert isinstance(body["report"]["nodes_refused"], int) and body["report"]["nodes_refused"] >= 0
+    assert isinstance(body["report"]["jumps_refused"], int) and body["report"]["jumps_refused"] >= 0
     flying = [
         k
         for k in body["keyframes"]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
 
 import numpy as np
@@ -138,6 +139,33 @@ def test_a_node_whose_stance_is_refused_is_routed_around(roadmap: Roadmap) -> No
         start, goal, collides_many=world.inflated(GAP), node_clear=lambda i: False
     )
     assert nothing.status is PlanStatus.INFEASIBLE
+
+
+def test_refused_jumps_are_left_out(roadmap: Roadmap) -> None:
+    """``refused`` jumps (node label pairs, START and GOAL among them) never appear in the
+    answer, which is still a valid path; refusing every jump of each answer in turn ends in
+    INFEASIBLE, not in a loop."""
+    _, world = gap_scene()
+    start, goal = node(0.5, 1.0, 0.4), node(7.5, 1.0, 0.4)
+    first = roadmap.query(start, goal, collides_many=world.inflated(GAP)).value
+    assert first is not None
+    refused = [(int(first.nodes[0]), int(first.nodes[1]))]  # the jump from START
+    second = roadmap.query(start, goal, collides_many=world.inflated(GAP), refused=refused).value
+    assert second is not None and second.nodes[0] == START and second.nodes[-1] == GOAL
+    jumps = set(zip(second.nodes[:-1].tolist(), second.nodes[1:].tolist(), strict=True))
+    assert not jumps & set(refused)
+    for jump in second.jumps():
+        assert np.linalg.norm(jump.v0) <= PARAMS.v0max * (1 + 1e-9)
+    refused = []
+    for _ in range(200):
+        res = roadmap.query(start, goal, collides_many=world.inflated(GAP), refused=refused)
+        if res.value is None:
+            assert res.status is PlanStatus.INFEASIBLE
+            break
+        path = res.value.nodes.tolist()
+        refused += list(itertools.pairwise(path))
+    else:
+        pytest.fail("refusing every jump found never ran out of paths")
 
 
 def test_save_load_answers_identically(roadmap: Roadmap, tmp_path: Path) -> None:
