@@ -19,8 +19,9 @@ After the plans, a pace table (issue 13) per plan scenario: average progress (m/
 end COM over the animation), median stride (m, a contact's move between two consecutive
 contacts of its limb), frames with a still COM, dynamic validity (Eq. 1: mean fraction of
 valid samples per phase, and the share of phases valid throughout) beside 2PAC's Table 3
-where the paper has the kind of scene, contact changes per plan (median), and seconds of
-computation per contact change (whole pipeline, median).
+where the paper has the kind of scene, contact changes per plan (median), seconds of
+computation per contact change (whole pipeline, median), and on flat ground how far the
+keyframe COM rises and falls (bob: its height range over the plan, mm, median).
 """
 
 from __future__ import annotations
@@ -93,6 +94,7 @@ class Tally:
     changes: list[int] = field(default_factory=list)
     per_change: list[float] = field(default_factory=list)
     validity: list[float] = field(default_factory=list)
+    bob: list[float] = field(default_factory=list)
 
     def add(self, audit: MotionAudit) -> None:
         self.frames += audit.frames
@@ -161,7 +163,7 @@ HEADER = (
 PAPER_VALIDITY = {"stair": "97 %", "climbing": "56 %", "slope": "85 %", "chair": "100 %"}
 PACE_HEADER = (
     f"{'scenario':32s} {'pace':>6s} {'stride':>6s} {'still':>6s} {'valid':>6s} "
-    f"{'whole':>6s} {'paper':>6s} {'chg':>5s} {'s/chg':>6s}"
+    f"{'whole':>6s} {'paper':>6s} {'chg':>5s} {'s/chg':>6s} {'bob mm':>6s}"
 )
 
 
@@ -194,7 +196,7 @@ def _pace_row(name: str, tally: Tally) -> str:
     return (
         f"{name:32s} {med(tally.pace, '.3f'):>6s} {med(tally.strides, '.2f'):>6s} {still:>6s} "
         f"{valid:>6s} {whole:>6s} {paper:>6s} {med(tally.changes, '.0f'):>5s} "
-        f"{med(tally.per_change, '.3f'):>6s}"
+        f"{med(tally.per_change, '.3f'):>6s} {med([1e3 * b for b in tally.bob], '.0f'):>6s}"
     )
 
 
@@ -202,11 +204,12 @@ def _duration(keyframes: Any) -> float:
     return float(keyframes[-1].t - keyframes[0].t) if len(keyframes) >= 2 else 0.0
 
 
-def _audit(tally: Tally, *args: Any, **kwargs: Any) -> None:
+def _audit(tally: Tally, *args: Any, **kwargs: Any) -> MotionAudit:
     start = time.perf_counter()
     audit = audit_from_domain(*args, **kwargs)
     tally.audit_s.append(time.perf_counter() - start)
     tally.add(audit)
+    return audit
 
 
 def bench_plans(
@@ -260,7 +263,11 @@ def bench_plans(
             duration = _duration(motion.keyframes)
             if duration > 0:
                 tally.cost.append(seconds / duration)
-            _audit(tally, spec["character"], scene, motion.keyframes, motion.phases, motion.com)
+            audit = _audit(
+                tally, spec["character"], scene, motion.keyframes, motion.phases, motion.com
+            )
+            if spec["scene"] == "flat" and len(audit.coms):
+                tally.bob.append(float(np.ptp(audit.coms[:, 2])))
         print(f"{tally.row(file.stem)}  [{time.perf_counter() - wall:.0f} s]", flush=True)
         for note in sorted(tally.notes):
             print(f"{'':32s} note: {note}")

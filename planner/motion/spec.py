@@ -61,8 +61,9 @@ class MotionPhase:
     trunk upright; a character whose trunk may pitch keeps the pitch).
 
     flight : None for a phase on the ground; for a flight (``stance`` empty) the limbs it
-    carries (possibly none): the COM follows its curve exactly (the whole body translated
-    onto it each control step), each carried limb along its ``FlightLimb`` path.
+    carries (possibly none): the COM follows its curve exactly (an equality of each control
+    step's QP, the whole body translated onto it after the step), each carried limb along
+    its ``FlightLimb`` path.
     fast_com : the COM moves fast (a jump's takeoff push or landing): its target is not
     saturated at ``COM_MAX_ERROR`` and the trunk height target moves with it (``posture``'s
     root position is then where the root is aimed at ``t0``). A flight implies it.

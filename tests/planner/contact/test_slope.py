@@ -12,6 +12,7 @@ from planner.contact.slope import (
     body_span,
     follow_slope,
     straight_slope_path,
+    terrain_fit,
     terrain_line,
 )
 from planner.contact.standing import standing_state
@@ -71,6 +72,32 @@ def test_straight_path_up_the_wall_lies_along_the_lane() -> None:
     assert on_lane and np.all(np.abs(np.array(on_lane) - LANE_SLOPE) < 0.15)
     heights = poses[1:-1, 2, 3]  # the ends are the given roots, at their own heights
     assert np.all(np.diff(heights) > -0.03)  # climbs, give or take a smoothing wobble
+
+
+def test_even_ground_is_walked_at_standing_height_and_rough_ground_with_clearance() -> None:
+    """The guide stands the trunk at its standing height over even ground (raised over it,
+    the hexapod's body rose to the guide at every advance and sank at every step), and a
+    few centimetres higher over rough ground, where the terrain strays from its line."""
+    flat = checker("hexapod", "flat")
+    half_length, half_width, stand = body_span(flat)
+    start, goal = _facing_x(0.0, 0.0, stand), _facing_x(1.0, 0.0, stand)
+    poses = straight_slope_path(flat, start, goal, spacing=0.05, max_pitch=0.7)
+    assert poses is not None
+    np.testing.assert_allclose(poses[:, 2, 3], stand, atol=1e-9)
+    even = terrain_fit(scene("flat"), _facing_x(0.5, 0.0, stand), half_length, half_width)
+    assert even is not None and even[2] == pytest.approx(0.0, abs=1e-9)
+    wall = checker("hexapod", "climbing_wall")
+    x = b.CLIMB_START_X + 0.5 + b.CLIMB_DEPTH
+    rough = terrain_fit(scene("climbing_wall"), _facing_x(x, 0.0, 0.6), half_length, half_width)
+    assert rough is not None and rough[2] > 0.01
+    line = follow_slope(
+        wall,
+        np.stack([_facing_x(x + d, 0.0, 0.6 + 0.5 * d) for d in (-0.1, 0.0, 0.1)]),
+        max_pitch=0.7,
+    )
+    height = rough[0]
+    pitch = _pitch(line[1])
+    assert line[1][2, 3] > height + stand / math.cos(pitch) + 0.03
 
 
 def test_straight_path_is_refused_when_blocked() -> None:
