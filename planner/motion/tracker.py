@@ -63,6 +63,7 @@ IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
 
 _UPRIGHT = math.cos(1e-3)  # a trunk target this close to upright is upright
+_WORLD_UP = np.array([0.0, 0.0, 1.0])
 _COS_TILT_WATCH = math.cos(tuning.TILT_WATCH)
 _COS_MAX_TILT = math.cos(tuning.MAX_TILT)
 _DAQP_EQUALITY = 5  # daqp's constraint sense of an equality row
@@ -663,7 +664,10 @@ class WholeBodyTracker:
         rows.append(self._trunk_weights[:, None] * jac[self._trunk_keep])
         errors.append(self._trunk_weights * (-gain * err[self._trunk_keep]))
         upright = targets.level_trunk and trunk[2, 2] > _UPRIGHT
-        self._tilt_row = self._tilt_bound() if upright else None
+        # a flight's trunk stays near its aim (the landing's), as an upright one near the
+        # vertical: dodging a ledge with its legs, the hexapod pitched 86 degrees mid-air
+        aim = _WORLD_UP if upright else trunk[:, 2] if targets.exact_com else None
+        self._tilt_row = self._tilt_bound(aim) if aim is not None else None
         stacked = np.concatenate(rows)  # 2-D blocks: vstack's result, without its checks
         hessian = stacked.T @ stacked
         linear = -(np.concatenate(errors) @ stacked)
@@ -695,15 +699,16 @@ class WholeBodyTracker:
         com_move = (jcom.copy(), targets.com - com) if targets.exact_com else None
         return StepQP(hessian, linear, held, com_move)
 
-    def _tilt_bound(self) -> tuple[FloatArray, FloatArray] | None:
-        """The row (G (1, nv), h (1,)) keeping the trunk's tilt (its z axis from the world's)
-        under ``MAX_TILT``, velocity-damper form on cos(tilt), at the kinematics of the last
-        :meth:`objective`; None while the tilt is under ``TILT_WATCH``."""
+    def _tilt_bound(self, aim: FloatArray) -> tuple[FloatArray, FloatArray] | None:
+        """The row (G (1, nv), h (1,)) keeping the trunk's tilt (its z axis from ``aim``
+        (3,), a world unit axis: the vertical for an upright trunk) under ``MAX_TILT``,
+        velocity-damper form on cos(tilt), at the kinematics of the last :meth:`objective`;
+        None while the tilt is under ``TILT_WATCH``."""
         rotation = self.data.oMf[self._root_frame].rotation
-        cos_tilt = float(rotation[2, 2])
+        up = rotation.T @ aim  # the aimed axis in the trunk's frame
+        cos_tilt = float(up[2])
         if cos_tilt > _COS_TILT_WATCH:
             return None
-        up = rotation[2, :]  # the world's z axis in the trunk's frame
         row = np.zeros((1, self.model.nv))
         # d cos(tilt) = omega . (e_z x up), omega the trunk's angular step (its frame)
         row[0, 3:6] = -np.array([-up[1], up[0], 0.0])
