@@ -32,8 +32,8 @@ def _loaded(name: str) -> tuple[object, ...] | None:
     return SCENARIOS[name].load()
 
 
-@cache
-def _planned(name: str) -> PlanResult[JumpPlan]:
+def _plan_with(name: str, seed: int) -> PlanResult[JumpPlan]:
+    """Scenario ``name`` planned with the rng of ``seed``."""
     scenario = SCENARIOS[name]
     loaded = _loaded(name)
     assert loaded is not None
@@ -44,9 +44,14 @@ def _planned(name: str) -> PlanResult[JumpPlan]:
         data,  # type: ignore[arg-type]
         scenario.end("start"),
         scenario.end("goal"),
-        rng=np.random.default_rng(scenario.seed),
+        rng=np.random.default_rng(seed),
         params=scenario.params(),
     )
+
+
+@cache
+def _planned(name: str) -> PlanResult[JumpPlan]:
+    return _plan_with(name, SCENARIOS[name].seed)
 
 
 def _plan(name: str) -> JumpPlan:
@@ -122,7 +127,11 @@ def test_trunk_free_along_arcs_dense(name: str) -> None:
 
 @cache
 def _audit(name: str) -> MotionAudit:
-    plan = _plan(name)
+    return _audit_plan(name, _plan(name))
+
+
+def _audit_plan(name: str, plan: JumpPlan) -> MotionAudit:
+    """The independent auditor's figures of ``plan``, a plan of scenario ``name``."""
     loaded = _loaded(name)
     assert loaded is not None
     scene, character, _ = loaded
@@ -291,31 +300,14 @@ def test_jumps_the_body_cannot_play_are_planned_around() -> None:
     name = "gaps_humanoid"
     if _loaded(name) is None:
         pytest.skip("scene not installed")
-    scenario = SCENARIOS[name]
-    scene, character, data = _loaded(name)  # type: ignore[misc]
     refusals = []
-    for seed in (scenario.seed + 5, scenario.seed + 14):
-        result = plan_jumps(
-            scene,
-            character,
-            data,
-            scenario.end("start"),
-            scenario.end("goal"),
-            rng=np.random.default_rng(seed),
-            params=scenario.params(),
-        )
+    for seed in (SCENARIOS[name].seed + 5, SCENARIOS[name].seed + 14):
+        result = _plan_with(name, seed)
         assert result.status is PlanStatus.SOLVED, (seed, result.message)
         plan = result.value
         assert plan is not None
         refusals.append(int(result.stats["jumps_refused"]))
-        audit = audit_from_domain(
-            character.id,
-            scene,
-            plan.keyframes,
-            plan.phases,
-            plan.com,
-            [(j.push_start, j.rest) for j in plan.jumps],
-        )
+        audit = _audit_plan(name, plan)
         assert audit.penetrating_frames == 0, (seed, audit.summary())
         assert audit.self_collision_frames == 0, (seed, audit.summary())
         assert audit.stance_contact_error_m <= 0.005, (seed, audit.summary())
@@ -340,19 +332,7 @@ def _same(a: JumpPlan, b: JumpPlan) -> None:
 def test_same_seed_same_answer() -> None:
     name = "gaps_hexapod"
     first = _plan(name)
-    scenario = SCENARIOS[name]
-    loaded = _loaded(name)
-    assert loaded is not None
-    scene, character, data = loaded
-    again = plan_jumps(
-        scene,  # type: ignore[arg-type]
-        character,  # type: ignore[arg-type]
-        data,  # type: ignore[arg-type]
-        scenario.end("start"),
-        scenario.end("goal"),
-        rng=np.random.default_rng(scenario.seed),
-        params=scenario.params(),
-    )
+    again = _plan_with(name, SCENARIOS[name].seed)
     assert again.value is not None
     _same(first, again.value)
 
