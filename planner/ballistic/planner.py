@@ -428,6 +428,8 @@ def plan_jumps(
             best = (score, plan, problems, found)
         if not problems or unplayable is None or plan.report is None or plan.report.cut_short:
             break
+        if attempt == tuning.JUMP_REPLANS:
+            break  # no query left to ask without it
         # the roadmap checks the trunk only: a jump whose whole-body motion the builder
         # cannot play cleanly is refused and the query asked again (jump paper section 5)
         refused.append((int(path.nodes[unplayable]), int(path.nodes[unplayable + 1])))
