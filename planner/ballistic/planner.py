@@ -20,7 +20,7 @@ import json
 import os
 import tempfile
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -419,20 +419,20 @@ def plan_jumps(
             # a push or landing beyond the legs' reach or the contact cone: refused before
             # the builder runs
             unbuilt = unbuilt or (planned, found)
-            refused.append((int(path.nodes[beyond]), int(path.nodes[beyond + 1])))
+            refused.append(path.jump_labels(beyond))
             timings["keyframes"] += time.perf_counter() - keyframes_mark
             continue
         plan, problems, unplayable, score = _animated(model, roadmap, planned, len(refused), until)
         timings["keyframes"] += time.perf_counter() - keyframes_mark
         if best is None or score < best[0]:
             best = (score, plan, problems, found)
-        if not problems or unplayable is None or plan.report is None or plan.report.cut_short:
+        if not problems or unplayable is None or score[0]:  # clean, or nothing to refuse
             break
         if attempt == tuning.JUMP_REPLANS:
             break  # no query left to ask without it
         # the roadmap checks the trunk only: a jump whose whole-body motion the builder
         # cannot play cleanly is refused and the query asked again (jump paper section 5)
-        refused.append((int(path.nodes[unplayable]), int(path.nodes[unplayable + 1])))
+        refused.append(path.jump_labels(unplayable))
     if best is None and unbuilt is not None:
         # every path found went beyond the body: the first, animated, says so
         planned, found = unbuilt
@@ -478,20 +478,22 @@ def _animated(
         motion.com,
         motion.report,
     )
-    problems, unplayable = _problems(planned.jumps, motion)
+    problems, unplayable = _problems(planned, motion)
     refused_keys = sum(not check.valid for check in motion.checks)
     score = (int(motion.report.cut_short), refused_keys + len(problems), refusals)
     return plan, problems, unplayable, score
 
 
-def _problems(jumps: Sequence[JumpInfo], motion: BuiltMotion) -> tuple[list[str], int | None]:
+def _problems(planned: _PathMotion, motion: BuiltMotion) -> tuple[list[str], int | None]:
     """What keeps a jump plan's motion from being played as is, in words, and the index of
     the first jump at fault (its crouch, push, flight or landing, or the stand after the last
     landing, holds a keyframe the checker refuses, or it pushes or lands beyond the legs'
     reach or the contact cone); None when no jump is (the motion was cut short)."""
     report = motion.report
     problems = [f"whole-body motion: {report.shortfall()}"] if not report.complete else []
-    at_fault: list[int] = []
+    beyond = planned.beyond_the_body()
+    at_fault = [] if beyond is None else [beyond]
+    jumps = planned.jumps
     for i, j in enumerate(jumps):
         for what, in_cone, in_reach in (
             ("push", j.push_in_cone, j.push_in_reach),
@@ -503,8 +505,6 @@ def _problems(jumps: Sequence[JumpInfo], motion: BuiltMotion) -> tuple[list[str]
                 problems.append(
                     f"jump {i}: the {what} needs the COM to travel beyond the legs' reach"
                 )
-            if not (in_cone and in_reach):
-                at_fault.append(i)
     starts = [j.t_start for j in jumps]
     for key, check in zip(motion.keyframes, motion.checks, strict=True):
         if not check.valid and starts:

@@ -682,6 +682,11 @@ class JumpPath:
     def __len__(self) -> int:
         return int(self.t.shape[0])
 
+    def jump_labels(self, i: int) -> tuple[int, int]:
+        """Jump ``i``'s (takeoff, landing) node labels, as ``query_roadmap``'s ``refused``
+        takes them."""
+        return int(self.nodes[i]), int(self.nodes[i + 1])
+
     def jumps(self) -> list[Jump]:
         """The jumps as ``Jump`` values."""
         return [

@@ -906,11 +906,11 @@ class WholeBodyTracker:
         """A (k, nv), b (k,): the ``rigid`` limbs' stance held exactly, ``J_c dq = -e_c``
         (position rows only for a point contact), and a flight's COM moved exactly
         (``StepQP.com_move``); None when there are none."""
-        blocks = [
-            (qp.held[limb][0][keep], -tuning.TASK_GAIN * qp.held[limb][1][keep])
-            for limb in rigid
-            for keep in (self._rigid_keep[limb],)
-        ]
+        blocks = []
+        for limb in rigid:
+            jac, err = qp.held[limb]
+            keep = self._rigid_keep[limb]
+            blocks.append((jac[keep], -tuning.TASK_GAIN * err[keep]))
         if qp.com_move is not None:
             blocks.append(qp.com_move)
         if not blocks:
