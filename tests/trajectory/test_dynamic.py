@@ -293,6 +293,50 @@ def test_a_run_without_refinement_that_does_not_settle_is_run_again_refined(
         np.testing.assert_array_equal(a.control_points, b.control_points)
 
 
+def test_a_run_that_stalls_within_the_reduced_tolerance_is_taken_without_a_refined_run(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Clarabel's unrefined run ending AlmostSolved (its progress stalled after meeting
+    ``REDUCED_TOLERANCE``, as the climbing wall's whole-plan QPs do): its answer is the
+    curve, with no second, refined run; every run asks the reduced tolerances of the
+    module."""
+    phases, durations, start, end = _walk(3, 0.4, 0.15)
+    clarabel = trajectory.dynamic.clarabel
+    real = clarabel.DefaultSolver
+    runs: list[tuple[bool, float, float]] = []
+
+    class Stalled:
+        def __init__(self, solution: Any) -> None:
+            self.status = clarabel.SolverStatus.AlmostSolved
+            self.x = solution.x
+
+    class Solver:
+        def __init__(self, *args: Any) -> None:
+            settings = args[-1]
+            runs.append(
+                (
+                    bool(settings.iterative_refinement_enable),
+                    float(settings.reduced_tol_gap_abs),
+                    float(settings.reduced_tol_feas),
+                )
+            )
+            self.solver = real(*args)
+
+        def solve(self) -> Any:
+            return Stalled(self.solver.solve())
+
+    monkeypatch.setattr(clarabel, "DefaultSolver", Solver)
+    stalled = trajectory.dynamic_com(phases, durations, start, end)
+    monkeypatch.undo()
+    solved = trajectory.dynamic_com(phases, durations, start, end)
+    reduced = trajectory.dynamic.REDUCED_TOLERANCE
+    assert stalled is not None and solved is not None
+    assert runs and all(run == (False, reduced, reduced) for run in runs)
+    assert len(runs) == stalled.iterations  # one run per linearisation round, none refined
+    for a, b in zip(stalled.curve.segments, solved.curve.segments, strict=True):
+        np.testing.assert_array_equal(a.control_points, b.control_points)
+
+
 def test_the_inequality_rows_are_the_box_kinematic_and_margin_rows_in_order() -> None:
     """``_fixed_rows``'s inequalities (built directly in CSR form) row by row: per phase the
     trust box (x <= high, then -x <= -low), then each control point's reachable kinematic
