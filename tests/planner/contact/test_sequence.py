@@ -11,14 +11,17 @@ from planner.contact.sequence import (
     ADVANCE_SHARE,
     CLIMB_ADVANCE_SHARE,
     CLIMB_SHARE,
+    LOOP_CONTACT_TOLERANCE,
     ROUGH_ADVANCE,
     ROUGH_LOOKAHEAD,
     STRIDE_SHARE,
     SequenceParams,
     _Guide,
+    _same_contacts,
     gait_lengths,
     gait_order,
 )
+from planner.contact.state import ContactState, LimbContact
 
 
 def _line(n: int, step: float) -> np.ndarray:
@@ -37,6 +40,7 @@ def _line(n: int, step: float) -> np.ndarray:
         ("advance", 0.0),
         ("jitter", 2.0),
         ("idle_rounds", 0),
+        ("loop_visits", 1),
     ],
 )
 def test_params_out_of_range_are_refused(field: str, value: float) -> None:
@@ -97,3 +101,37 @@ def test_gait_lengths_scale_with_the_legs_unless_given() -> None:
     assert small.of(False) == (small.rough_lookahead, small.rough_advance)  # no climb gait
     given = gait_lengths(legs, ["left", "right"], SequenceParams(lookahead=0.3, advance=0.2))
     assert given.of(True) == given.of(False) == (0.3, 0.2)
+
+
+def _state(positions: dict[str, tuple[float, float, float]]) -> ContactState:
+    contacts = []
+    for limb, position in positions.items():
+        placement = np.eye(4)
+        placement[:3, 3] = position
+        contacts.append(
+            LimbContact(limb, placement, np.array([position]), np.array([0.0, 0.0, 1.0]), 0.7)
+        )
+    return ContactState(np.zeros(7), tuple(contacts))
+
+
+@given(
+    st.lists(st.floats(-2.0, 2.0), min_size=6, max_size=6),
+    st.floats(0.0, 0.999),
+    st.floats(1.001, 3.0),
+    st.sampled_from(["a", "b"]),
+)
+def test_same_contacts_are_the_same_limbs_each_within_the_tolerance(
+    coordinates: list[float], near: float, far: float, moved: str
+) -> None:
+    """The walker's loop test: two states hold the same contacts when the same limbs are in
+    contact, in any order, each within ``LOOP_CONTACT_TOLERANCE`` of the other's."""
+    a = {"a": tuple(coordinates[:3]), "b": tuple(coordinates[3:])}
+    first = _state(a)
+    shifted = dict(a)
+    x, y, z = a[moved]
+    shifted[moved] = (x + near * LOOP_CONTACT_TOLERANCE, y, z)
+    assert _same_contacts(first, _state(dict(reversed(list(shifted.items())))))
+    shifted[moved] = (x, y, z - far * LOOP_CONTACT_TOLERANCE)
+    assert not _same_contacts(first, _state(shifted))
+    assert not _same_contacts(first, _state({"a": a["a"]}))
+    assert not _same_contacts(first, _state({"a": a["a"], "c": a["b"]}))
