@@ -359,7 +359,8 @@ of is put in too (fewer rounds; a row that does not bind leaves the optimum as i
 SOLVER_REFINEMENT = False
 """Whether Clarabel first solves with iterative refinement of its KKT solves (its default is
 on): off halves the time of a solve, and moved the control points by less than 3e-7 m on the
-captured plans' QPs. A run that ends neither solved nor infeasible is repeated with it on."""
+captured plans' QPs. A run that ends neither solved (to ``SOLVER_TOLERANCE``, or to
+``REDUCED_TOLERANCE`` where its progress stalls) nor infeasible is repeated with it on."""
 
 _SETTLED = frozenset(
     {
