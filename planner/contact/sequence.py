@@ -118,12 +118,10 @@ in contact) hold the same contacts, for ``SequenceParams.loop_visits``."""
 def _same_contacts(a: ContactState, b: ContactState) -> bool:
     """Whether ``a`` and ``b`` hold the same limbs' contacts, each within
     ``LOOP_CONTACT_TOLERANCE`` of the other's."""
-    if sorted(a.limbs) != sorted(b.limbs):
-        return False
-    return all(
-        float(np.linalg.norm(c.position - other.position)) <= LOOP_CONTACT_TOLERANCE
+    held = {c.limb: c.position for c in b.contacts}
+    return held.keys() == set(a.limbs) and all(
+        float(np.linalg.norm(c.position - held[c.limb])) <= LOOP_CONTACT_TOLERANCE
         for c in a.contacts
-        if (other := b.contact(c.limb)) is not None
     )
 
 
@@ -433,6 +431,11 @@ def contact_sequence(
         stats["progress_m"] = round(s, 4)
         return PlanResult(status, tuple(states), dict(stats), message)
 
+    def stalled(message: str) -> PlanResult[tuple[ContactState, ...]]:
+        # a walk that gives up without reaching the goal, and whether it left a leg behind
+        stats["stranded"] = int(stranded())
+        return result(PlanStatus.APPROXIMATE, message)
+
     def finish() -> PlanResult[tuple[ContactState, ...]]:
         # release the contacts the goal does not have
         nonlocal current
@@ -688,20 +691,16 @@ def contact_sequence(
         else:
             idle += 1
         if idle > p.idle_rounds * len(order):
-            stats["stranded"] = int(stranded())
-            return result(
-                PlanStatus.APPROXIMATE,
-                f"no progress in {p.idle_rounds} gait rounds at {s:.2f} m of {guide.length:.2f} m",
+            return stalled(
+                f"no progress in {p.idle_rounds} gait rounds at {s:.2f} m of {guide.length:.2f} m"
             )
         if stepped and idle:
             visited.append(current)
             if sum(_same_contacts(current, seen) for seen in visited) >= p.loop_visits:
-                stats["stranded"] = int(stranded())
-                stats["loops"] = int(stats.get("loops", 0)) + 1
-                return result(
-                    PlanStatus.APPROXIMATE,
+                stats["loops"] = 1
+                return stalled(
                     f"no progress at {s:.2f} m of {guide.length:.2f} m: the walk came back to "
-                    f"the same contacts {p.loop_visits} times",
+                    f"the same contacts {p.loop_visits} times"
                 )
         if stepped or moved:
             stuck = 0
@@ -709,8 +708,6 @@ def contact_sequence(
         stuck += 1
         if stuck > p.max_stuck:
             far = ", ".join(f"{x} {gaps[x]:.2f} m" for x in candidates) or "none"
-            stats["stranded"] = int(stranded())
-            return result(
-                PlanStatus.APPROXIMATE,
-                f"stuck at {s:.2f} m of {guide.length:.2f} m; limbs off their footholds: {far}",
+            return stalled(
+                f"stuck at {s:.2f} m of {guide.length:.2f} m; limbs off their footholds: {far}"
             )

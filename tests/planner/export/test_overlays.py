@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 from scipy.spatial import ConvexHull
 
 from planner.export import equilibrium_outline
+from planner.scene.geometry2d import closest_on_segments
 
 UP = np.array([0.0, 0.0, 1.0])
 coordinate = st.floats(-1.0, 1.0, allow_nan=False)
@@ -20,17 +21,6 @@ def _patch(x: float, y: float, yaw: float) -> np.ndarray:
     corners = np.array([[0.1, 0.05], [-0.1, 0.05], [-0.1, -0.05], [0.1, -0.05]])
     turn = np.array([[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]])
     return np.column_stack([corners @ turn.T + [x, y], np.zeros(4)])
-
-
-def _boundary_distances(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
-    """(p,) m from each of (p, 2) ``points`` to the nearest edge of the closed (k, 2)
-    ``polygon``."""
-    starts, ends = polygon, np.roll(polygon, -1, axis=0)
-    edges = ends - starts  # (k, 2)
-    lengths = np.maximum(np.einsum("ka,ka->k", edges, edges), 1e-300)
-    along = np.einsum("pka,ka->pk", points[:, None, :] - starts[None], edges) / lengths
-    nearest = starts[None] + np.clip(along, 0.0, 1.0)[:, :, None] * edges[None]
-    return np.asarray(np.linalg.norm(points[:, None, :] - nearest, axis=2).min(axis=1))
 
 
 @given(
@@ -57,7 +47,8 @@ def test_flat_ground_outline_is_the_support_polygon(
     # ... and every hull vertex is on the outline's boundary: the same polygon (a hull vertex
     # that is all but in line with its neighbours, two soles turned by 6e-8 rad, may be
     # drawn as a point of an outline edge rather than as a vertex of its own)
-    gaps = _boundary_distances(corners, outline[:, :2])
+    ring = outline[:, :2]
+    gaps, _, _ = closest_on_segments(corners, ring, np.roll(ring, -1, axis=0))
     assert np.all(gaps <= 1e-3), gaps
     # Counter-clockwise seen from above.
     x, y = outline[:, 0], outline[:, 1]
