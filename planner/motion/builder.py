@@ -430,9 +430,12 @@ class _Segment:
 def _clearing_top(targets: _Targets, checker: KeyframeChecker, k: int) -> float:
     """m, the lowest top of ``CLEARING_HEIGHTS`` whose clearing path for phase k
     (:meth:`_Targets.clearing_path`) keeps the swinging effector's shapes
-    ``CLEARING_MARGIN`` off the scene at ``CLEARING_SAMPLES`` times (those within
-    ``CLEARING_END_ZONE`` of either end, where it touches its surfaces, not measured); the
-    highest when none does."""
+    ``CLEARING_MARGIN`` off the scene at ``CLEARING_SAMPLES`` times, ``CLEARING_NORMAL_MARGIN``
+    where it only rises or descends along the normal (samples within ``CLEARING_END_ZONE`` of
+    either end, where it touches its surfaces, not measured); when none does, the one whose
+    path comes nearest to it (the lowest of equals), not the highest: a foot stepping down
+    beside the riser of the tread above passes its nosing as close at every top, and the
+    highest folded the leg to its joint limits and leaned the chest 58 degrees."""
     phase = targets.spec.phases[k]
     swing = phase.swing
     assert swing is not None
@@ -447,24 +450,30 @@ def _clearing_top(targets: _Targets, checker: KeyframeChecker, k: int) -> float:
     ]
     p0, p3 = swing.start[:3, 3], swing.end[:3, 3]
     times = np.linspace(phase.t0, targets.landing(phase), tuning.CLEARING_SAMPLES)
+    # along the normal only (the rise before the crossing starts, the descent after it ends)
+    # the tracked effector lags along its own line: a smaller margin there
+    share = (times - times[0]) / (times[-1] - times[0])
+    straight = (share <= tuning.CLEARING_RISE_SHARE) | (share >= 1.0 - tuning.CLEARING_RISE_SHARE)
+    margins = np.where(straight, tuning.CLEARING_NORMAL_MARGIN, tuning.CLEARING_MARGIN)
+    best_top, best_gap = tuning.CLEARING_HEIGHTS[0], -math.inf
     for top in tuning.CLEARING_HEIGHTS:
         path = targets.clearing_path(k, top)
-        clear = True
-        for t in times:
+        gap = math.inf  # the smallest distance beyond its margin, measured until negative
+        for t, margin in zip(times, margins, strict=True):
             pose = np.asarray(path(float(t)), dtype=np.float64)
             here = pose[:3, 3]
             if min(np.linalg.norm(here - p0), np.linalg.norm(here - p3)) < tuning.CLEARING_END_ZONE:
                 continue
             placed = pin.SE3(pose[:3, :3], here)
-            if any(
-                checker.distances.nearest(geometry, placed * local) < tuning.CLEARING_MARGIN
-                for geometry, local in shapes
-            ):
-                clear = False
+            for geometry, local in shapes:
+                gap = min(gap, checker.distances.nearest(geometry, placed * local) - margin)
+            if gap < 0.0:
                 break
-        if clear:
+        if gap >= 0.0:
             return top
-    return tuning.CLEARING_HEIGHTS[-1]
+        if gap > best_gap:
+            best_top, best_gap = top, gap
+    return best_top
 
 
 def _swing_at_fault(segment: _Segment, shapes: frozenset[str]) -> bool:

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -131,6 +132,42 @@ def phase_kinematics(data: OfflineData, state: ContactState) -> trajectory.Halfs
         lambda: _phase_kinematics(state, polytopes),
     )
     return kinematics
+
+
+def plan_kinematics(
+    character: Character, data: OfflineData, states: Sequence[ContactState]
+) -> list[trajectory.Halfspaces | None]:
+    """Per state, K c <= k (world frame) that a plan's COM keeps to while its contacts are
+    held: :func:`phase_kinematics`, and for a state entered by a step down (a limb put
+    ``STEP_DOWN`` or more below where it left) the COM at most ``COM_ABOVE_STATE`` above the
+    state's own COM (the height its whole-body posture was found at)."""
+    out: list[trajectory.Halfspaces | None] = []
+    last: dict[str, float] = {}  # per limb, the height of its latest contact
+    for state in states:
+        kinematics = phase_kinematics(data, state)
+        stepped_down = any(
+            c.limb in last and c.placement[2, 3] <= last[c.limb] - tuning.STEP_DOWN
+            for c in state.contacts
+        )
+        if kinematics is not None and stepped_down:
+            kinematics = _per_state(
+                ("below", id(state), id(kinematics), id(character.model)),
+                (state, kinematics, character.model),
+                partial(_below_state_height, character, state, kinematics),
+            )
+        out.append(kinematics)
+        last.update((c.limb, float(c.placement[2, 3])) for c in state.contacts)
+    return out
+
+
+def _below_state_height(
+    character: Character, state: ContactState, kinematics: trajectory.Halfspaces
+) -> trajectory.Halfspaces:
+    height = float(com_position(character.model, state.q)[2])
+    return trajectory.Halfspaces(
+        np.vstack([kinematics.A, [[0.0, 0.0, 1.0]]]),
+        np.concatenate([kinematics.b, [height + tuning.COM_ABOVE_STATE]]),
+    )
 
 
 def _phase_kinematics(
@@ -401,7 +438,7 @@ def _dynamic_window(
         list(durations[lo:hi]),
         start,
         end,
-        kinematics=[phase_kinematics(data, s) for s in states[lo:hi]],
+        kinematics=plan_kinematics(character, data, states)[lo:hi],
         reference=reference.curve,
         reference_times=list(reference.phase_times[lo : hi + 1]),
         before=before,
@@ -528,7 +565,7 @@ def timed_com(
     honoured and why not."""
     speed = timing.speed
     phases_tr = [contact_phase(character, s) for s in states]
-    kinematics = [phase_kinematics(data, s) for s in states]
+    kinematics = plan_kinematics(character, data, states)
     coms = [com_position(character.model, s.q) for s in states]
     placed, attractor_report = user_transitions(phases_tr, kinematics, timing.attractors)
     com_trajectory = trajectory.plan_com_trajectory(

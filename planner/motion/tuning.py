@@ -255,6 +255,12 @@ CLEARING_MARGIN = 0.03
 """m, the gap the swinging effector's shapes keep from the scene along a clearing path (the
 tracked effector lags its path and cuts its corners)."""
 
+CLEARING_NORMAL_MARGIN = SECURITY_DISTANCE
+"""m, the same gap where a clearing path only rises from its start or descends onto its end
+along the normal (the effector lags along its own line and cuts no corner there; the
+collision dampers keep it this far): a foot put down on a stair tread beside the riser above
+descends past that tread's nosing about 1 cm away."""
+
 CLEARING_END_ZONE = 0.04
 """m: path samples this close to either end (where the effector touches its surface) are not
 measured against the scene."""
@@ -326,6 +332,21 @@ Twister games of ``bench/step.py``: steps last 0.6 s instead of 0.9 to 3.3 s."""
 SECONDS_PER_METRE = 1.0
 """s per metre of a window's control polygon: the nominal pace of 2PAC's sliding window
 (section 6.4.1); ``options.speed`` divides it."""
+
+STEP_DOWN = 0.05
+"""m: a limb put at least this much lower than where it left makes a step down, whose state
+keeps a plan's COM within ``COM_ABOVE_STATE`` of its own height."""
+
+COM_ABOVE_STATE = 0.05
+"""m: while a plan's phase holds the contacts of a state entered by a step down, its COM curve
+and transition points stay at most this far above the COM of that state's own whole-body
+posture (on top of the effectors' COM polytopes, 2PAC Eq. 4). The polytopes are hulls of
+whole-body samples with arms raised and trunks bent, looser than the body the tracker keeps
+upright: walking down stairs, a transition point put the COM 10 cm above the
+double-support posture the contact planner found, and the leg stepping down, straight,
+landed 20 mm short (half the seeds APPROXIMATE). Not in every state: capped everywhere, the
+COM of HyQ on the cinder blocks lagged its curve 77 mm (p99, 14 before) and the climbing
+hexapod's windows lost their quasi-static solutions at 3 cm."""
 
 MIN_SWING_S = 0.6
 """s, shortest swing of a plan: a foot or hand leaves, travels and lands."""

@@ -9,15 +9,17 @@ import itertools
 
 import numpy as np
 import pinocchio as pin
+from scipy.spatial.transform import Rotation
 
 from planner.contact.checks import make_contact
 from planner.contact.context import make_context
 from planner.contact.state import ContactState
 from planner.kinematics import com_position
-from planner.motion import tuning
+from planner.motion import builder, tuning
 from planner.motion.builder import build_motion
+from planner.motion.checker import KeyframeChecker
 from planner.motion.jump import JumpLeg, build_jumps
-from planner.motion.spec import MotionPhase, MotionSpec
+from planner.motion.spec import MotionPhase, MotionSpec, Swing
 from planner.motion.tracker import speed_limits
 from tests.planner.contact.contact_helpers import character_and_data, scene
 from trajectory import BezierCurve, PiecewiseBezier
@@ -208,3 +210,37 @@ def test_a_flight_that_turns_keeps_the_legs_apart() -> None:
             gaps.append(np.linalg.norm(data_.oMf[left].translation - data_.oMf[right].translation))
     assert len(gaps) >= 10
     assert min(gaps) > 0.1  # about the stance width all along; world blending gives ~0.02
+
+
+def test_a_foot_stepping_down_beside_a_riser_crosses_low() -> None:
+    """The box-shaped swing path (the builder's last resort after its arcs) of a humanoid's
+    foot stepping down two treads, landing 1 cm from the riser of the tread between: its
+    descent passes that tread's nosing as close at every top (the dampers' margin along the
+    normal), so the crossing is as low as it can be, not the highest (which folded the leg
+    to its joint limits and leaned the chest 58 degrees)."""
+    character, _ = character_and_data("humanoid")
+    stairs = scene("stairs")
+    q = np.array(character.q_ref)
+
+    def foot(yaw: float, position: list[float]) -> np.ndarray:
+        pose = np.eye(4)
+        pose[:3, :3] = Rotation.from_euler("z", yaw).as_matrix()
+        pose[:3, 3] = position
+        return pose
+
+    # measured on the stairs scene: from the landing at 0.9 m down to the 0.6 m tread, the
+    # other foot on the 0.75 m tread between
+    swing = Swing(
+        "left_foot",
+        foot(3.1301, [2.729, -0.105, 0.901]),
+        foot(-3.0630, [2.077, -0.116, 0.601]),
+        0.08,
+    )
+    c0 = com_position(character.model, q)
+    curve = PiecewiseBezier((BezierCurve(np.stack([c0, c0]), 0.0, 0.6),))
+    spec = MotionSpec(q, (MotionPhase(0.0, 0.6, (), q, swing=swing),), curve, 30.0)
+    checker = KeyframeChecker(character, stairs.collision.bvh)
+    assert (
+        builder._clearing_top(builder._Targets(character, spec), checker, 0)
+        == (tuning.CLEARING_HEIGHTS[0])
+    )

@@ -9,6 +9,7 @@ from functools import cache
 import numpy as np
 import pytest
 
+import trajectory
 from planner.contact.checks import hold_error, make_contact, within_limits
 from planner.contact.context import ContactContext, make_context
 from planner.contact.generation import hold_tasks, posture_task
@@ -180,6 +181,47 @@ def test_phases_remembered_per_state_equal_fresh_ones() -> None:
                 assert np.array_equal(kin.A, fresh[i][1].A)
                 assert np.array_equal(kin.b, fresh[i][1].b)
     assert contact_phase(character, states[0]) is contact_phase(character, states[0])
+
+
+def test_a_step_down_keeps_the_com_within_reach_of_its_states_own_height() -> None:
+    """A plan's kinematic constraints of a state are its effectors' COM polytopes (2PAC
+    Eq. 4), and for a state entered by a step down (a limb put ``STEP_DOWN`` or more below
+    where it left) a cap ``COM_ABOVE_STATE`` above the state's own COM. The hexapod's steps
+    on flat ground are no step down, the same steps 10 cm down are."""
+    from planner.motion import sequence
+
+    ctx, flat = _hexapod_steps()
+    character, data = ctx.character, ctx.data
+    down = [flat[0]]
+    for state in flat[1:]:
+        contacts = []
+        for c in state.contacts:
+            before = next((b for b in flat[0].contacts if b.limb == c.limb), None)
+            if before is not None and not np.allclose(c.placement, before.placement):
+                placement = c.placement.copy()
+                placement[2, 3] -= 0.1  # put down 10 cm lower than where it left
+                c = replace(c, placement=placement, points=c.points - [0.0, 0.0, 0.1])
+            contacts.append(c)
+        down.append(ContactState(state.q, tuple(contacts)))
+
+    def rows(kinematics: trajectory.Halfspaces | None) -> int:
+        assert kinematics is not None
+        return len(kinematics.b)
+
+    for states, steps in ((flat, []), (down, [2, 4, 6])):  # the states each foot is put down in
+        planned = sequence.plan_kinematics(character, data, states)
+        polytopes = [sequence.phase_kinematics(data, s) for s in states]
+        assert [j for j in range(len(states)) if rows(planned[j]) > rows(polytopes[j])] == steps
+        for j in steps:
+            kin, alone = planned[j], polytopes[j]
+            assert kin is not None and alone is not None
+            assert np.array_equal(kin.A[:-1], alone.A) and np.array_equal(kin.b[:-1], alone.b)
+            # the cap: the state's own COM keeps to it, a point 1 cm above it does not
+            com = com_position(character.model, states[j].q)
+            above = com + np.array([0.0, 0.0, tuning.COM_ABOVE_STATE + 0.01])
+            assert np.array_equal(kin.A[-1], [0.0, 0.0, 1.0])
+            assert float(kin.A[-1] @ com - kin.b[-1]) == pytest.approx(-tuning.COM_ABOVE_STATE)
+            assert float(kin.A[-1] @ above - kin.b[-1]) == pytest.approx(0.01)
 
 
 def _fake_build(original: tuple[ContactState, ...], bad: int, replanned_clean: bool):  # type: ignore[no-untyped-def]

@@ -377,6 +377,9 @@ FURTHER_SEEDS = (
     # the searched guide turned Talos 30 to 56 degrees off the way it climbed, its hips at
     # their yaw and roll limits: a stance foot slipped 8 mm (the guide now faces its way)
     ("hpp_stair_bauzil_talos", 9),
+    # stepping down, a transition point held the COM 10 cm above the double-support posture
+    # the contact planner found, and the straight leg landed 17 mm short of its tread
+    ("stairs_down_humanoid", 2),
 )
 
 
