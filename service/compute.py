@@ -492,8 +492,8 @@ def run_ready(
     request_model, response_model = _MODELS[kind]
     request = request_model.model_validate_json(request_json).model_dump(mode="json")
     stored, summary = stored_result(kind, request, seed, answer)
-    _result_store().put(stored, summary)
     body = response_model.model_validate(stored.response).model_dump_json().encode()
+    _result_store().put(stored, summary, response_json=body)
     gzipped = gzip_from is not None and len(body) >= gzip_from
     if gzipped:
         body = gzip.compress(body, compresslevel=gzip_level, mtime=0)

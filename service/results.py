@@ -110,18 +110,21 @@ class ResultStore:
     def _paths(self, rid: str) -> tuple[Path, Path]:
         return self.directory / f"{rid}.json", self.directory / f"{rid}.meta.json"
 
-    def put(self, result: StoredResult, summary: dict[str, Any]) -> bool:
+    def put(
+        self, result: StoredResult, summary: dict[str, Any], *, response_json: bytes | None = None
+    ) -> bool:
         """Store a result (replacing one with the same id), then evict; False if it alone
-        is larger than the byte bound (then it is not kept)."""
-        body = json.dumps(
-            {
-                "kind": result.kind,
-                "id": result.id,
-                "request": result.request,
-                "response": result.response,
-            },
+        is larger than the byte bound (then it is not kept). ``response_json``: the response
+        already serialised as JSON (the route's body, of the same value as
+        ``result.response``), written as it is: the standard library's encoder takes 2.7 ms
+        for a Twister step's 60 kB of numbers, a twentieth of the step."""
+        head = json.dumps(
+            {"kind": result.kind, "id": result.id, "request": result.request},
             separators=(",", ":"),
         ).encode()
+        if response_json is None:
+            response_json = json.dumps(result.response, separators=(",", ":")).encode()
+        body = b"".join((head[:-1], b',"response":', response_json, b"}"))
         meta = json.dumps(
             {"kind": result.kind, "id": result.id, "stored_at": time.time(), **summary},
             separators=(",", ":"),

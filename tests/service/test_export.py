@@ -8,6 +8,7 @@ tree, animation samplers interpolated (linear, slerp) at the keyframe times.
 
 from __future__ import annotations
 
+import json
 import os
 import time
 from pathlib import Path
@@ -222,6 +223,20 @@ def test_store_evicts_least_recently_used(tmp_path: Path) -> None:
         small.put(StoredResult("plan", f"{k:032x}", {}, {"blob": "y" * 100_000}), {})
     total = sum(p.stat().st_size for p in (tmp_path / "small").glob("*.json"))
     assert total <= 2 * 1024 * 1024
+
+
+def test_a_result_stored_with_its_response_already_serialised_reads_back_the_same(
+    tmp_path: Path,
+) -> None:
+    """The response written as the route's JSON body (``put(response_json=)``) reads back as
+    the same result as one the store serialises itself, numbers to the bit."""
+    response = {"status": "SOLVED", "keyframes": [{"t": 1 / 3, "q": [1e-05, -0.0, 2.5e300]}]}
+    request = {"character": "humanoid", "seed": 7}
+    own, given = (ResultStore(tmp_path / name, max_count=3, max_bytes=10**6) for name in "ab")
+    stored = StoredResult("step", "cd" * 16, request, response)
+    assert own.put(stored, {})
+    assert given.put(stored, {}, response_json=json.dumps(response).encode())
+    assert own.get(stored.id) == given.get(stored.id) == stored
 
 
 @pytest.mark.anyio
