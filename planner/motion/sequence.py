@@ -438,7 +438,7 @@ def _dynamic_window(
         list(durations[lo:hi]),
         start,
         end,
-        kinematics=plan_kinematics(character, data, states)[lo:hi],
+        kinematics=plan_kinematics(character, data, states[:hi])[lo:],  # steps down before lo
         reference=reference.curve,
         reference_times=list(reference.phase_times[lo : hi + 1]),
         before=before,

@@ -240,7 +240,5 @@ def test_a_foot_stepping_down_beside_a_riser_crosses_low() -> None:
     curve = PiecewiseBezier((BezierCurve(np.stack([c0, c0]), 0.0, 0.6),))
     spec = MotionSpec(q, (MotionPhase(0.0, 0.6, (), q, swing=swing),), curve, 30.0)
     checker = KeyframeChecker(character, stairs.collision.bvh)
-    assert (
-        builder._clearing_top(builder._Targets(character, spec), checker, 0)
-        == (tuning.CLEARING_HEIGHTS[0])
-    )
+    top = builder._clearing_top(builder._Targets(character, spec), checker, 0)
+    assert top == tuning.CLEARING_HEIGHTS[0]
