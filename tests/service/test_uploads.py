@@ -2,7 +2,8 @@
 bounded by a quota, listed from stored metadata, held in memory by a bounded LRU.
 
 Real servers (uvicorn on a local port, or the app in process with its lifespan) and real mesh
-files; the only timing asserted is /health's, the figure the service promises under any load.
+files. No speed is asserted: that /health is not held up by a parse is shown by its answers
+arriving while an upload is in flight, not by a latency figure a busy machine would miss.
 """
 
 from __future__ import annotations
@@ -38,8 +39,8 @@ from tests.mesh_files import grid_mesh, grid_ply, instanced_dae, instanced_glb
 from tests.paths import gecko_cache_dir
 from tests.prometheus_text import metric_samples, sample_value
 
-HEALTH_LIMIT_S = 0.1  # /health must answer within this while uploads are parsed
 HEALTH_EVERY_S = 0.02
+PROVING_UPLOAD_S = 10 * HEALTH_EVERY_S  # an upload this long must see /health answered inside it
 MiB = 1024 * 1024
 HOUR_S = 3600.0
 QUOTA_BYTES = 48 * MiB  # the test servers' quota of uploaded scenes (a 60k-triangle one: 34)
@@ -78,11 +79,12 @@ def _error(response: httpx.Response, status: int, code: str) -> str:
 
 
 class HealthProbe:
-    """Polls /health from a thread every HEALTH_EVERY_S and records each answer's latency."""
+    """Polls /health from a thread every HEALTH_EVERY_S and records when each asking started
+    and its answer arrived (perf_counter seconds)."""
 
     def __init__(self, url: str) -> None:
         self.url = url
-        self.latencies: list[float] = []
+        self.answers: list[tuple[float, float]] = []
         self.failures: list[str] = []
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="health-probe", daemon=True)
@@ -92,10 +94,17 @@ class HealthProbe:
             while not self._stop.is_set():
                 started = time.perf_counter()
                 response = http.get("/health")
-                self.latencies.append(time.perf_counter() - started)
+                self.answers.append((started, time.perf_counter()))
                 if response.status_code != 200:
                     self.failures.append(response.text)
                 self._stop.wait(HEALTH_EVERY_S)
+
+    def answered_within(self, start: float, end: float) -> int:
+        """How many /health requests were both asked and answered between start and end."""
+        return sum(1 for asked, answered in self.answers if asked >= start and answered <= end)
+
+    def slowest(self) -> float:
+        return max(answered - asked for asked, answered in self.answers)
 
     def __enter__(self) -> HealthProbe:
         self._thread.start()
@@ -104,6 +113,34 @@ class HealthProbe:
     def __exit__(self, *exc: object) -> None:
         self._stop.set()
         self._thread.join(timeout=30)
+
+
+def _timed_post(
+    http: httpx.Client, windows: list[tuple[float, float]], **kwargs: Any
+) -> httpx.Response:
+    """POST /v1/scenes, appending the request's (start, end) perf_counter seconds to windows."""
+    started = time.perf_counter()
+    response = http.post("/v1/scenes", **kwargs)
+    windows.append((started, time.perf_counter()))
+    return response
+
+
+def _assert_health_answered_during_uploads(
+    probe: HealthProbe, windows: list[tuple[float, float]]
+) -> None:
+    """Every upload in flight for PROVING_UPLOAD_S or longer saw /health answered inside it,
+    and no /health answer waited half as long as the longest: a parse that held the server's
+    event loop would leave none inside and one waiting out the whole parse."""
+    assert not probe.failures
+    slowest = probe.slowest()
+    for start, end in windows:
+        if end - start >= PROVING_UPLOAD_S:
+            assert probe.answered_within(start, end) >= 1, (
+                f"no /health answer during a {end - start:.2f} s upload; slowest {slowest:.2f} s"
+            )
+    longest = max(end - start for start, end in windows)
+    if longest >= PROVING_UPLOAD_S:
+        assert slowest < 0.5 * longest, f"/health waited {slowest:.2f} s, uploads {longest:.2f} s"
 
 
 @pytest.fixture(scope="module")
@@ -131,13 +168,14 @@ def test_oversized_files_are_refused_before_parsing_while_health_answers(
     ply = grid_ply(500_000)
     accepted = _grid_stl(60_000)  # within the limit: parsed and built in the uploads lane
     assert len(glb) < 500_000 and len(ply) > 9_000_000
+    windows: list[tuple[float, float]] = []
     with HealthProbe(url) as probe, httpx.Client(base_url=url, timeout=120) as http:
         time.sleep(5 * HEALTH_EVERY_S)
-        started = time.perf_counter()
-        refused_glb = http.post("/v1/scenes", params={"format": "glb"}, content=glb)
-        glb_s = time.perf_counter() - started
-        refused_ply = http.post("/v1/scenes", params={"format": "ply"}, content=ply)
-        built = http.post("/v1/scenes", params={"format": "stl", "name": "grid"}, content=accepted)
+        refused_glb = _timed_post(http, windows, params={"format": "glb"}, content=glb)
+        refused_ply = _timed_post(http, windows, params={"format": "ply"}, content=ply)
+        built = _timed_post(
+            http, windows, params={"format": "stl", "name": "grid"}, content=accepted
+        )
         time.sleep(5 * HEALTH_EVERY_S)
     assert built.status_code == 201, built.text
     scene_id = built.json()["id"]
@@ -149,10 +187,10 @@ def test_oversized_files_are_refused_before_parsing_while_health_answers(
     assert "1945600 triangles (after instancing)" in message, message
     assert "limit 100000" in message
     assert "GECKO_MAX_TRIANGLES" in _error(refused_ply, 413, "too_large")
-    print(f"refused instanced GLB in {glb_s:.3f} s; /health max {max(probe.latencies):.3f} s")
-    assert not probe.failures
-    assert len(probe.latencies) >= 10
-    assert max(probe.latencies) < HEALTH_LIMIT_S, sorted(probe.latencies)[-5:]
+    spans = ", ".join(f"{end - start:.3f}" for start, end in windows)
+    print(f"uploads took {spans} s; /health slowest {probe.slowest():.3f} s")
+    assert len(probe.answers) >= 10
+    _assert_health_answered_during_uploads(probe, windows)
 
 
 def test_the_quota_refuses_an_upload_and_delete_frees_it(
@@ -228,10 +266,11 @@ def test_an_instanced_dae_is_refused_by_its_scene_graph_and_one_within_the_limit
     url, scenes = upload_server
     refused_body = instanced_dae(20, subdivisions=2, doublings=10)  # 6.5 M triangles in 13 KB
     accepted_body = instanced_dae(3, subdivisions=2, doublings=2)  # 3,840 triangles
+    windows: list[tuple[float, float]] = []
     with HealthProbe(url) as probe, httpx.Client(base_url=url, timeout=120) as http:
         time.sleep(5 * HEALTH_EVERY_S)
-        refused = http.post("/v1/scenes", params={"format": "dae"}, content=refused_body)
-        accepted = http.post("/v1/scenes", params={"format": "dae"}, content=accepted_body)
+        refused = _timed_post(http, windows, params={"format": "dae"}, content=refused_body)
+        accepted = _timed_post(http, windows, params={"format": "dae"}, content=accepted_body)
         time.sleep(5 * HEALTH_EVERY_S)
     message = _error(refused, 413, "too_large")
     assert "the DAE file holds 6553600 triangles (after instancing)" in message, message
@@ -240,8 +279,7 @@ def test_an_instanced_dae_is_refused_by_its_scene_graph_and_one_within_the_limit
     assert accepted.status_code == 201, accepted.text
     assert accepted.json()["triangle_count"] == 3 * 4 * 320
     assert httpx.delete(f"{url}/v1/scenes/{accepted.json()['id']}", timeout=30).status_code == 204
-    assert not probe.failures
-    assert max(probe.latencies) < HEALTH_LIMIT_S, sorted(probe.latencies)[-5:]
+    _assert_health_answered_during_uploads(probe, windows)
 
 
 @asynccontextmanager
