@@ -234,6 +234,25 @@ def obstacle_normal(
     return None if norm < 1e-9 else np.asarray(total / norm, dtype=np.float64)
 
 
+def lifts_clear(ctx: ContactContext, q: FloatArray, contact: LimbContact, lift: float) -> bool:
+    """Whether the shapes carrying ``contact`` at ``q`` (nq,), raised straight along its
+    normal by ``lift`` m (half of it, then all of it) above where :func:`scene_collisions`
+    tests them, touch neither the scene nor an obstacle: a sole set half under a rock's
+    overhang could not lift off its foothold without driving into the rock."""
+    geometry = ctx.character.geometry
+    pin.updateGeometryPlacements(ctx.model, ctx.pin_data, geometry, ctx.geom_data, q)
+    objects = geometry.geometryObjects
+    normal = np.asarray(contact.normal, dtype=np.float64)
+    for i, raised in lifted_geometries(ctx.character, [(contact.limb, normal)]).items():
+        placement = np.array(ctx.geom_data.oMg[i].homogeneous)
+        for share in (0.5, 1.0):
+            moved = placement.copy()
+            moved[:3, 3] += raised + share * lift * normal
+            if _collide(ctx, objects[i].geometry, moved):
+                return False
+    return True
+
+
 def self_collides(ctx: ContactContext, q: FloatArray) -> bool:
     """Whether two non-adjacent body shapes intersect at ``q`` (``body.self_collides``)."""
     return body_self_collides(ctx.character, q, ctx.pin_data, ctx.geom_data)

@@ -26,6 +26,7 @@ from planner.contact.checks import (
     forward,
     hold_error,
     kinematics_of,
+    lifts_clear,
     make_contact,
     shrunk_equilibrium,
 )
@@ -36,6 +37,7 @@ from planner.contact.context import (
     character_obstacles,
     make_context,
 )
+from planner.contact.reachability import ground_limbs
 from planner.contact.state import ContactState, LimbContact
 from planner.kinematics import (
     ComTask,
@@ -397,6 +399,15 @@ _HEADROOM_RADIUS = 0.03  # m, at least, of that free space's radius (a point foo
 _REAIM_RADIUS = 0.05  # m: a whole-body reach that ends this close is aimed again where it got
 
 
+def _stands_on(ctx: ContactContext, limb: str) -> bool:
+    """Whether the character stands on ``limb`` (its contact touches the ground in the
+    reference configuration): a foot, which the swing lifts straight off its foothold."""
+    feet: frozenset[str] = ctx.cached(
+        "ground_limbs", lambda: frozenset(ground_limbs(ctx.character))
+    )
+    return limb in feet
+
+
 def _uncovered(ctx: ContactContext, sid: int, point: FloatArray, radius: float) -> bool:
     """Whether the space just above ``point`` (3,) on surface ``sid`` is free: not inside a
     solid of the scene (ground running on under a staircase), and a capsule of half the
@@ -735,7 +746,9 @@ def create_contact(
             if _tilt(q2) > MAX_TRUNK_TILT + ctx.character.max_pitch:
                 worst = max(worst, FailureReason.NOT_BALANCED, key=_STAGE.__getitem__)
                 continue  # the next projection (a database posture, or none)
-            if not collision_free(ctx, q2, (*state.contacts, contact)):
+            if not collision_free(ctx, q2, (*state.contacts, contact)) or (
+                _stands_on(ctx, limb) and not lifts_clear(ctx, q2, contact, _HEADROOM)
+            ):
                 worst = max(worst, FailureReason.COLLISION, key=_STAGE.__getitem__)
                 resampled += 1
                 continue  # re-sample the limb posture

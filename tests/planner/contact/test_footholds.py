@@ -2,10 +2,18 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+import pinocchio as pin
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
 
+from planner.contact.body import body_geometry
+from planner.contact.checks import lifts_clear, make_contact, scene_collisions
+from planner.contact.context import ContactContext
 from planner.contact.generation import (
     _HEADROOM_RADIUS,
     _patch_radius,
@@ -83,3 +91,37 @@ def test_a_point_foot_keeps_clear_of_a_riser() -> None:
     for gap, free in ((0.01, False), (0.025, False), (0.04, True), (0.1, True)):
         point = np.array([STAIRS_START_X - gap, 0.0, 0.0])
         assert _uncovered(ctx, ground, point, radius) is free, gap
+
+
+def _standing_with_right_foot_at(
+    ctx: ContactContext, foot_xy: NDArray[np.float64], yaw: float
+) -> Any:
+    """The humanoid's reference posture turned ``yaw`` rad, moved so that its right foot's
+    frame stands over ``foot_xy`` (2,) on the ground."""
+    model, data = ctx.model, ctx.model.createData()
+    q = np.array(ctx.character.q_ref, dtype=np.float64)
+    q[3:7] = Rotation.from_euler("z", yaw).as_quat()
+    pin.framesForwardKinematics(model, data, q)
+    foot = data.oMf[ctx.character.limb("right_foot").frame_id].translation
+    q[:2] += foot_xy - foot[:2]
+    q[2] -= foot[2]
+    return q
+
+
+RUBBLE = scene("rubble")
+RUBBLE_GROUND = max(range(len(RUBBLE.surfaces)), key=lambda i: RUBBLE.surfaces[i].area)
+
+
+def test_a_sole_under_a_rock_overhang_cannot_lift_off() -> None:
+    """A rubble rock tilts over the ground, its lowest edge 2 cm up. A sole whose toe stands
+    under it touches nothing (as a state's checks test it) but cannot lift straight off
+    without driving the toe into the rock: a humanoid walking diagonally across the rubble
+    did, 44 mm; such a foothold is not taken. Beside no rock the same sole lifts clear."""
+    ctx = context("humanoid", "rubble", twister=False)
+    q = _standing_with_right_foot_at(ctx, np.array([1.632, 1.639]), np.radians(28.0))
+    contact = make_contact(ctx, "right_foot", q, RUBBLE_GROUND)
+    sole = sorted(body_geometry(ctx.character).exempt["right_foot"])
+    assert not scene_collisions(ctx, q, only=sole, contacts=(contact,))
+    assert not lifts_clear(ctx, q, contact, 0.1)
+    away = _standing_with_right_foot_at(ctx, np.array([0.0, 0.5]), np.radians(28.0))
+    assert lifts_clear(ctx, away, make_contact(ctx, "right_foot", away, RUBBLE_GROUND), 0.1)
