@@ -29,6 +29,7 @@ from planner.motion.sequence import SequenceMotion, Timing, sequence_motion
 from planner.offline import OfflineData
 from planner.result import PlanResult, PlanStatus
 from planner.scene import Scene
+from planner.shapes import Capsule
 from planner.termination import Deadline, Termination
 
 FloatArray = NDArray[np.float64]
@@ -80,6 +81,35 @@ class ContactPlan:
     timings: dict[str, float]
 
 
+def _detour_checker(
+    scene: Scene,
+    character: Character,
+    data: OfflineData,
+    checker: ReachabilityChecker,
+    stalls: Sequence[FloatArray],
+    ends: Sequence[FloatArray],
+) -> ReachabilityChecker | None:
+    """``checker``'s condition with the trunk also kept ``DETOUR_RADIUS`` m from a vertical
+    line through each of the ``stalls`` (root positions (3,) where walks stalled) that lies
+    farther than that plus the trunk's reach from both ``ends`` (the guide's end root
+    positions (3,)); None when no stall is kept."""
+    clear = DETOUR_RADIUS + checker.radius
+    kept = [
+        p
+        for p in stalls
+        if min(float(np.linalg.norm(np.asarray(p)[:2] - e[:2])) for e in ends) > clear
+    ]
+    if not kept:
+        return None
+    column = Capsule(DETOUR_RADIUS, 2.0 * float(character.q_ref[2]) + 1.0)
+    obstacles = []
+    for p in kept:
+        pose = np.eye(4)
+        pose[:3, 3] = p
+        obstacles.append((column, pose))
+    return ReachabilityChecker(scene, character, data, obstacles=obstacles)
+
+
 def _resolve(
     endpoint: Endpoint,
     scene: Scene,
@@ -125,6 +155,11 @@ most this many walks, while the search budget lasts."""
 RESUME_BACK_M = 0.4
 """m of guide a retry backs off from where a walk stalled: the walk is resumed from its last
 state with every leg down this far behind its furthest progress."""
+DETOUR_RADIUS = 0.3
+"""m: once a walk along a straight guide stalled, a guide planned again keeps the trunk this
+far from a vertical line through the root where each walk stalled (``_detour_checker``): the
+straight line a new search finds first over open ground would lead the walk back to the same
+footholds (a searched guide is random and goes elsewhere anyway)."""
 SEARCH_SHARE = budgets.SEARCH_SHARE  # of the work (and of the clock cap) for the search
 MAX_REPLAN_WALKS = 8
 """Contact walks a plan may start again when its whole-body motion cannot make a contact
@@ -297,6 +332,9 @@ def plan_contact_motion(
     best: tuple[PlanResult[tuple[ContactState, ...]], FloatArray, PlanResult[Any]] | None = None
     attempts = 0
     stranded = False  # a walk stalled unable to release a leg it left behind
+    stalls: list[FloatArray] = []  # root positions (3,) where walks stalled
+    straight = False  # the last guide searched is the straight line from start to goal
+    fenced = False  # a walk along a straight guide stalled: later guides go round stalls
     resume_gained = True  # the best walk may be walked on (no resume from it gained nothing)
     for jitter in _RETRY_JITTERS:
         # A stuck walk is walked on from before where it stalled, with noisier foothold
@@ -319,16 +357,27 @@ def plan_contact_motion(
         elif direct is not None:
             poses, path = direct, PlanResult(PlanStatus.SOLVED, None, {"direct_path": 1})
         else:
-            path = plan_root_path(
-                checker,
-                start_root,
-                goal_root,
-                rng=rng,
-                until=search(budgets.ROOT_PATH_ITERATION_UNITS),
-                step=opts.step,
-                orientation_bounds=OrientationBounds(pitch=(-max_pitch, max_pitch)),
-            )
+            # a search over open ground finds the straight line first, every time: once a
+            # walk along it stalled, a guide round where walks stalled is sought first
+            ends = (start_root[:3, 3], goal_root[:3, 3])
+            detour = None
+            if fenced:
+                detour = _detour_checker(scene, character, data, checker, stalls, ends)
+            path = PlanResult(PlanStatus.INFEASIBLE, None)
+            for guide_checker in [c for c in (detour, checker) if c is not None]:
+                path = plan_root_path(
+                    guide_checker,
+                    start_root,
+                    goal_root,
+                    rng=rng,
+                    until=search(budgets.ROOT_PATH_ITERATION_UNITS),
+                    step=opts.step,
+                    orientation_bounds=OrientationBounds(pitch=(-max_pitch, max_pitch)),
+                )
+                if path.status and path.value is not None:
+                    break
             lap("root_path")
+            straight = path.value is not None and len(path.value.poses) == 2
             if not path.status or path.value is None:
                 if best is None:
                     plan = ContactPlan((start_state.value,), empty_path, None, timings)
@@ -369,6 +418,9 @@ def plan_contact_motion(
             sequence = _after(prefix, sequence)
         lap("contacts")
         stranded = stranded or bool(sequence.stats.get("stranded"))
+        if sequence.status is not PlanStatus.SOLVED and sequence.value:
+            stalls.append(np.array(sequence.value[-1].q[:3], dtype=np.float64))
+            fenced = fenced or straight
         gained = best is None or _better(sequence, best[0])
         if resumed:
             resume_gained = gained

@@ -9,14 +9,24 @@ from typing import Any
 
 import numpy as np
 import pytest
+from numpy.typing import NDArray
 
 import planner.contact.planner as contact_planner
-from planner.contact.planner import RESUME_BACK_M, Endpoint, plan_contact_motion
+from planner.contact.planner import (
+    DETOUR_RADIUS,
+    RESUME_BACK_M,
+    Endpoint,
+    _detour_checker,
+    plan_contact_motion,
+)
+from planner.contact.reachability import ReachabilityChecker
 from planner.contact.sequence import resume_index
 from planner.contact.state import ContactState
 from planner.result import PlanResult, PlanStatus
 from planner.scene.builtin import GAPS_HEIGHTS, gaps_platform_ranges
 from tests.planner.contact.contact_helpers import character_and_data, flat_walk, scene
+
+FloatArray = NDArray[np.float64]
 
 
 @pytest.mark.parametrize("back_m", [0.0, 0.2, RESUME_BACK_M, 0.7, 5.0])
@@ -89,3 +99,65 @@ def test_a_stalled_walk_is_walked_on_from_before_where_it_stalled() -> None:
     # a resumed answer keeps the stalled walk's states before the point it resumed from
     kept = min(int(result.stats.get("resumed_at", 0)), k)
     assert all(a is b for a, b in zip(answer[:kept], before[:kept], strict=True))
+
+
+def test_a_walk_started_over_after_stalls_follows_a_guide_round_them() -> None:
+    """Walking diagonally across the rubble's tilted slabs, the first walk stalls among
+    them; a new search finds the same straight guide first (the trunk clears every slab),
+    which would lead back to the same footholds, so a guide planned after stalls keeps the
+    trunk ``DETOUR_RADIUS`` from where the walks stalled, and the plan gets through."""
+    walks: list[tuple[FloatArray, bool, PlanResult[tuple[ContactState, ...]]]] = []
+    real_walk = contact_planner.contact_sequence
+
+    def recorded(ctx: Any, start: ContactState, poses: Any, *args: Any, **kwargs: Any) -> Any:
+        walk = real_walk(ctx, start, poses, *args, **kwargs)  # the real walk, recorded
+        walks.append((np.asarray(poses), bool(kwargs.get("resume")), walk))
+        return walk
+
+    character, data = character_and_data("humanoid")
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(contact_planner, "contact_sequence", recorded)
+        result = plan_contact_motion(
+            scene("rubble"),
+            character,
+            data,
+            Endpoint(stand_at=np.array([-0.3, 0.5, 0.0])),
+            Endpoint(stand_at=np.array([2.8, 2.5, 0.0])),
+            rng=np.random.default_rng(1),
+            time_budget_s=30.0,
+            cap_s=600.0,
+        )
+    assert result.status is PlanStatus.SOLVED, result.message
+    stalls: list[FloatArray] = []
+    new_guides = 0
+    for poses, resumed, walk in walks:
+        if not resumed and stalls:
+            new_guides += 1
+            roots = poses[:, :2, 3]
+            for stall in stalls:
+                gaps = np.linalg.norm(roots - stall[:2], axis=1)
+                assert float(gaps.min()) >= DETOUR_RADIUS, (stall, float(gaps.min()))
+        if walk.status is not PlanStatus.SOLVED and walk.value:
+            stalls.append(np.asarray(walk.value[-1].q[:3]))
+    assert stalls and new_guides >= 1
+
+
+def test_a_stall_near_either_end_of_the_guide_is_not_avoided() -> None:
+    """A stall within ``DETOUR_RADIUS`` and the trunk's reach of the start or the goal is
+    not fenced off (the guide could not start or end); one farther is, and a root pose over
+    it fails the condition that the start still meets."""
+    character, data = character_and_data("humanoid")
+    flat = scene("flat")
+    checker = ReachabilityChecker(flat, character, data)
+    start, goal = np.array([0.0, 0.0, 0.9]), np.array([3.0, 0.0, 0.9])
+    near = start + np.array([DETOUR_RADIUS, 0.0, 0.0])
+    assert _detour_checker(flat, character, data, checker, [near], (start, goal)) is None
+    middle = np.array([1.5, 0.0, 0.9])
+    detour = _detour_checker(flat, character, data, checker, [near, middle], (start, goal))
+    assert detour is not None
+    at_start = np.eye(4)
+    at_start[:3, 3] = [0.0, 0.0, float(character.q_ref[2])]
+    over = at_start.copy()
+    over[:2, 3] = middle[:2]
+    assert checker.is_valid(over) and not detour.is_valid(over)
+    assert detour.is_valid(at_start)
