@@ -66,6 +66,8 @@ _UPRIGHT = math.cos(1e-3)  # a trunk target this close to upright is upright
 _WORLD_UP = np.array([0.0, 0.0, 1.0])
 _COS_TILT_WATCH = math.cos(tuning.TILT_WATCH)
 _COS_MAX_TILT = math.cos(tuning.MAX_TILT)
+_COS_CHEST_WATCH = math.cos(tuning.MAX_CHEST_TILT - (tuning.MAX_TILT - tuning.TILT_WATCH))
+_COS_MAX_CHEST_TILT = math.cos(tuning.MAX_CHEST_TILT)
 _DAQP_EQUALITY = 5  # daqp's constraint sense of an equality row
 # daqp's constraint sense type (numpy converts a ctypes type to a dtype slowly: once here)
 _DAQP_SENSE = np.dtype(ctypes.c_int)
@@ -339,6 +341,23 @@ def _character_terms(character: Character) -> _CharacterTerms:
     return terms
 
 
+def chest_joint(character: Character) -> int | None:
+    """The joint id of the character's chest: the deepest joint of no limb (not the root)
+    whose subtree carries two limbs' effectors or more (a humanoid's torso pitch, under its
+    arms); None when only the root carries two (a quadruped's, a hexapod's trunk)."""
+    model = character.model
+    carriers = [int(model.frames[limb.frame_id].parentJoint) for limb in character.limbs]
+    in_limbs = {int(j) for limb in character.limbs for j in limb.joint_ids}
+    best: int | None = None
+    for joint in range(2, model.njoints):
+        subtree = set(model.subtrees[joint])
+        carries = sum(1 for c in carriers if c in subtree)
+        deeper = best is None or len(subtree) < len(model.subtrees[best])
+        if joint not in in_limbs and carries >= 2 and deeper:
+            best = joint
+    return best
+
+
 class WholeBodyTracker:
     """One character in one scene; :meth:`step` moves a configuration one control step.
 
@@ -416,8 +435,21 @@ class WholeBodyTracker:
         self._jacobians = PointJacobians(model, self.data, self._masks)
         # shape placements computed elsewhere at a configuration (:meth:`offer_poses`)
         self._offered: tuple[FloatArray, Poses] | None = None
-        # the trunk tilt bound of the last objective, if the trunk aims upright and leans
+        # the trunk tilt bound of the last objective, if the trunk aims upright and leans,
+        # and the chest's, if the character has one and it leans
         self._tilt_row: tuple[FloatArray, FloatArray] | None = None
+        self._chest = chest_joint(character)
+        # the limbs the chest carries (a humanoid's arms): while one holds or reaches for a
+        # contact (a handrail, a climbing hold), the chest leans as that contact needs
+        self._chest_limbs: frozenset[str] = frozenset()
+        if self._chest is not None:
+            subtree = set(model.subtrees[self._chest])
+            self._chest_limbs = frozenset(
+                limb.name
+                for limb in character.limbs
+                if int(model.frames[limb.frame_id].parentJoint) in subtree
+            )
+        self._chest_row: tuple[FloatArray, FloatArray] | None = None
 
     def trunk_rotation(self, posture: FloatArray, level: bool = True) -> FloatArray:
         """(3, 3) trunk orientation aimed at from a planned configuration (nq,): with
@@ -668,6 +700,9 @@ class WholeBodyTracker:
         # vertical: dodging a ledge with its legs, the hexapod pitched 86 degrees mid-air
         aim = _WORLD_UP if upright else trunk[:, 2] if targets.exact_com else None
         self._tilt_row = self._tilt_bound(aim) if aim is not None else None
+        reaching = {limb for limb, _ in targets.stance} | {limb for limb, _ in moving}
+        free_chest = upright and not reaching & self._chest_limbs
+        self._chest_row = self._chest_bound() if free_chest else None
         stacked = np.concatenate(rows)  # 2-D blocks: vstack's result, without its checks
         hessian = stacked.T @ stacked
         linear = -(np.concatenate(errors) @ stacked)
@@ -713,6 +748,22 @@ class WholeBodyTracker:
         # d cos(tilt) = omega . (e_z x up), omega the trunk's angular step (its frame)
         row[0, 3:6] = -np.array([-up[1], up[0], 0.0])
         return row, np.array([tuning.TILT_GAIN * (cos_tilt - _COS_MAX_TILT)])
+
+    def _chest_bound(self) -> tuple[FloatArray, FloatArray] | None:
+        """The row (G (1, nv), h (1,)) keeping the chest's tilt from the vertical under
+        ``MAX_CHEST_TILT`` as :meth:`_tilt_bound` keeps the trunk's (watched from as far
+        under it); None without a chest or while it leans less. Asked for only while the
+        trunk aims upright and no limb the chest carries holds or seeks a contact."""
+        if self._chest is None:
+            return None
+        up = self.data.oMi[self._chest].rotation[2, :]  # the vertical in the chest's frame
+        cos_tilt = float(up[2])
+        if cos_tilt > _COS_CHEST_WATCH:
+            return None
+        local = pin.getJointJacobian(self.model, self.data, self._chest, pin.LOCAL)
+        row = -np.array([-up[1], up[0], 0.0]) @ local[3:6]
+        gain = tuning.TILT_GAIN * (cos_tilt - _COS_MAX_CHEST_TILT)
+        return row[None, :], np.array([gain])
 
     def _held_target(self, pose: FloatArray) -> Any:
         """``pose`` (4, 4) as a pin.SE3, made once per stance placement (a phase holds the
@@ -879,6 +930,7 @@ class WholeBodyTracker:
             self.scene.rows_at(self.data, self.geometry_data, self._poses, self._jacobians),
             self.self_clearance.rows_at(self.geometry_data, self._poses, self._jacobians),
             self._tilt_row,
+            self._chest_row,
         ):
             if rows is not None:
                 out.append(rows)

@@ -162,6 +162,14 @@ trunk task's pull alone let the humanoid lean back 35 to 41 degrees stepping up 
 4 seeds of 20. A jump's flight keeps its trunk as near the landing's trunk axis: the
 hexapod pitched 86 degrees mid-air keeping its legs off a ledge."""
 
+MAX_CHEST_TILT = math.radians(30.0)
+"""rad: the chest (a humanoid's torso, under its arms) of a trunk that aims upright, its
+arms holding no contact, never tilts further from the vertical than this, bounded as the
+trunk is (``MAX_TILT``, watched as far under it as the trunk's): with the trunk at its 25
+degrees, the posture task alone let the humanoid's chest fold to 41 degrees swinging a foot
+0.86 m over a slab of the rubble. A hand on a climbing hold or a handrail leans the chest
+as far as it needs (the climbing wall's plans failed with their chests bounded)."""
+
 TILT_WATCH = math.radians(20.0)
 """rad: the tilt bound is a row of the step's QP only beyond this tilt (a trunk well inside
 its bound costs nothing)."""
