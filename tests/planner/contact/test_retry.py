@@ -5,7 +5,7 @@ whole guide again."""
 from __future__ import annotations
 
 import itertools
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pytest
@@ -51,37 +51,61 @@ def test_the_resume_point_is_the_last_state_with_every_leg_down_that_far_back(
             assert x[j] > x.max() - back_m - spacing
 
 
-def test_a_stalled_walk_is_walked_on_from_before_where_it_stalled() -> None:
-    walks: list[tuple[ContactState, bool, PlanResult[tuple[ContactState, ...]]]] = []
+class Walk(NamedTuple):
+    """One contact walk a plan made: where it started, its guide's root poses (n, 4, 4),
+    whether it resumed a stalled one, and its result."""
+
+    start: ContactState
+    guide: FloatArray
+    resumed: bool
+    result: PlanResult[tuple[ContactState, ...]]
+
+
+def _plan_recording_walks(
+    scene_id: str, start: FloatArray, goal: FloatArray, budget_s: float
+) -> tuple[PlanResult[Any], list[Walk]]:
+    """The humanoid's plan from ``start`` to ``goal`` (stand_at points (3,)) at seed 1, and
+    the real contact walks it made, in order."""
+    walks: list[Walk] = []
     real_walk = contact_planner.contact_sequence
 
-    def recorded(ctx: Any, start: ContactState, *args: Any, **kwargs: Any) -> Any:
-        walk = real_walk(ctx, start, *args, **kwargs)  # the real walk, recorded
-        walks.append((start, bool(kwargs.get("resume")), walk))
+    def recorded(ctx: Any, begin: ContactState, poses: Any, *args: Any, **kwargs: Any) -> Any:
+        walk = real_walk(ctx, begin, poses, *args, **kwargs)
+        walks.append(Walk(begin, np.asarray(poses), bool(kwargs.get("resume")), walk))
         return walk
 
     character, data = character_and_data("humanoid")
-    ranges = gaps_platform_ranges()
-    middle = [(x0 + x1) / 2 for x0, x1 in ranges]
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(contact_planner, "contact_sequence", recorded)
-        # the humanoid cannot step across the first gap at this seed: its walks stall there
         result = plan_contact_motion(
-            scene("gaps"),
+            scene(scene_id),
             character,
             data,
-            Endpoint(stand_at=np.array([middle[0], 0.0, GAPS_HEIGHTS[0]])),
-            Endpoint(stand_at=np.array([middle[1], 0.0, GAPS_HEIGHTS[1]])),
+            Endpoint(stand_at=start),
+            Endpoint(stand_at=goal),
             rng=np.random.default_rng(1),
-            time_budget_s=10.0,
+            time_budget_s=budget_s,
             cap_s=600.0,
         )
+    return result, walks
+
+
+def test_a_stalled_walk_is_walked_on_from_before_where_it_stalled() -> None:
+    ranges = gaps_platform_ranges()
+    middle = [(x0 + x1) / 2 for x0, x1 in ranges]
+    # the humanoid cannot step across the first gap at this seed: its walks stall there
+    result, walks = _plan_recording_walks(
+        "gaps",
+        np.array([middle[0], 0.0, GAPS_HEIGHTS[0]]),
+        np.array([middle[1], 0.0, GAPS_HEIGHTS[1]]),
+        10.0,
+    )
     assert result.status is not PlanStatus.SOLVED
     assert len(walks) >= 2
-    first, resumed, stalled = walks[0]
+    first, _, resumed, stalled = walks[0]
     assert not resumed and stalled.status is PlanStatus.APPROXIMATE
     assert not stalled.stats.get("stranded")
-    start, resumed, _ = walks[1]
+    start, _, resumed, _ = walks[1]
     assert resumed
     before = stalled.value
     assert before is not None
@@ -106,31 +130,13 @@ def test_a_walk_started_over_after_stalls_follows_a_guide_round_them() -> None:
     them; a new search finds the same straight guide first (the trunk clears every slab),
     which would lead back to the same footholds, so a guide planned after stalls keeps the
     trunk ``DETOUR_RADIUS`` from where the walks stalled, and the plan gets through."""
-    walks: list[tuple[FloatArray, bool, PlanResult[tuple[ContactState, ...]]]] = []
-    real_walk = contact_planner.contact_sequence
-
-    def recorded(ctx: Any, start: ContactState, poses: Any, *args: Any, **kwargs: Any) -> Any:
-        walk = real_walk(ctx, start, poses, *args, **kwargs)  # the real walk, recorded
-        walks.append((np.asarray(poses), bool(kwargs.get("resume")), walk))
-        return walk
-
-    character, data = character_and_data("humanoid")
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(contact_planner, "contact_sequence", recorded)
-        result = plan_contact_motion(
-            scene("rubble"),
-            character,
-            data,
-            Endpoint(stand_at=np.array([-0.3, 0.5, 0.0])),
-            Endpoint(stand_at=np.array([2.8, 2.5, 0.0])),
-            rng=np.random.default_rng(1),
-            time_budget_s=30.0,
-            cap_s=600.0,
-        )
+    result, walks = _plan_recording_walks(
+        "rubble", np.array([-0.3, 0.5, 0.0]), np.array([2.8, 2.5, 0.0]), 30.0
+    )
     assert result.status is PlanStatus.SOLVED, result.message
     stalls: list[FloatArray] = []
     new_guides = 0
-    for poses, resumed, walk in walks:
+    for _, poses, resumed, walk in walks:
         if not resumed and stalls:
             new_guides += 1
             roots = poses[:, :2, 3]
