@@ -18,7 +18,7 @@ from planner.contact.context import ContactContext, ContactParams, make_context
 from planner.contact.generation import stand_up
 from planner.contact.heading import face_the_way
 from planner.contact.reachability import ReachabilityChecker
-from planner.contact.root_path import RootPath, plan_root_path
+from planner.contact.root_path import RootPath, edge_valid, plan_root_path
 from planner.contact.root_sampler import OrientationBounds
 from planner.contact.sequence import SequenceParams, contact_sequence, resume_index
 from planner.contact.slope import LEVEL_PITCH, follow_slope, straight_slope_path
@@ -317,6 +317,14 @@ def plan_contact_motion(
             checker, start_root, goal_root, spacing=opts.sequence.spacing, max_pitch=max_pitch
         )
         lap("root_path")
+    terrain_guide = None  # a level trunk whose straight line leaves its legs' reach (a flight
+    # of stairs between a landing and the floor) first tries that line at standing height over
+    # the terrain: a search wandered 0.8 m sideways going down Talos's stair_bauzil flight
+    if direct is None and not edge_valid(checker, start_root, goal_root, opts.step):
+        terrain_guide = straight_slope_path(
+            checker, start_root, goal_root, spacing=opts.sequence.spacing, max_pitch=0.0
+        )
+        lap("root_path")
     walking = {c.limb for c in (*start_state.value.contacts, *goal_state.value.contacts)}
     walking.update(opts.limbs)
     cycle_units = budgets.SEQUENCE_CYCLE_UNITS_PER_LIMB * max(1, len(walking))
@@ -356,6 +364,9 @@ def plan_contact_motion(
             prefix, start_from = tuple(kept[:k]), kept[k]
         elif direct is not None:
             poses, path = direct, PlanResult(PlanStatus.SOLVED, None, {"direct_path": 1})
+        elif terrain_guide is not None and best is None:
+            poses = terrain_guide
+            path = PlanResult(PlanStatus.SOLVED, None, {"terrain_path": 1})
         else:
             # a search over open ground finds the straight line first, every time: once a
             # walk along it stalled, a guide round where walks stalled is sought first

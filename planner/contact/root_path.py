@@ -195,7 +195,7 @@ def _steer(
     if last < 1:
         return None, False
     reached = poses[last]
-    if not _edge_valid(checker, a, reached, step):
+    if not edge_valid(checker, a, reached, step):
         return None, False
     return reached, False
 
@@ -215,7 +215,9 @@ def first_invalid(checker: ReachabilityChecker, poses: FloatArray, stride: int =
     return int(failing[0]) if len(failing) else end
 
 
-def _edge_valid(checker: ReachabilityChecker, a: FloatArray, b: FloatArray, step: float) -> bool:
+def edge_valid(checker: ReachabilityChecker, a: FloatArray, b: FloatArray, step: float) -> bool:
+    """Whether every pose of the straight edge from root pose ``a`` to ``b`` (4, 4), checked
+    every ``step`` m, meets the reachability condition."""
     poses = edge_poses(a, b, step, checker.radius)
     return first_invalid(checker, poses) == len(poses)
 
@@ -254,9 +256,9 @@ def shortcut(
             continue
         new = [*poses[: i1 + 1], pa, pb, *poses[i2:]]
         if not (
-            _edge_valid(checker, pa, pb, step)
-            and _edge_valid(checker, poses[i1], pa, step)
-            and _edge_valid(checker, pb, poses[i2], step)
+            edge_valid(checker, pa, pb, step)
+            and edge_valid(checker, poses[i1], pa, step)
+            and edge_valid(checker, pb, poses[i2], step)
         ):
             continue
         poses = new
@@ -274,7 +276,7 @@ def _skip_waypoints(
         j = i + 1
         if not until():
             for k in range(len(poses) - 1, i + 1, -1):
-                if _edge_valid(checker, poses[i], poses[k], step):
+                if edge_valid(checker, poses[i], poses[k], step):
                     j = k
                     break
         out.append(poses[j])
@@ -319,7 +321,7 @@ def plan_root_path(
     pool: list[FloatArray] = []
     empty_refills = 0
     found: tuple[int, int] | None = None
-    if _edge_valid(checker, a, b, step):
+    if edge_valid(checker, a, b, step):
         found = (0, 0)
     iteration = 0
     while found is None:

@@ -1,4 +1,6 @@
-"""Root paths laid along the terrain for a trunk that may pitch (the hexapod on steps)."""
+"""Root paths laid along the terrain: pitched for a trunk that may pitch (the hexapod on
+steps), level for one that may not when the straight line between its ends leaves its legs'
+reach (the humanoid down a flight of stairs)."""
 
 from __future__ import annotations
 
@@ -7,6 +9,8 @@ import math
 import numpy as np
 import pytest
 
+from planner.contact.planner import Endpoint, plan_contact_motion
+from planner.contact.root_path import edge_valid
 from planner.contact.slope import (
     LEVEL_PITCH,
     body_span,
@@ -134,3 +138,55 @@ def test_hexapod_stands_along_the_lane() -> None:
     assert found.value is not None
     root = frame_placement(character.model, found.value.q, 1)
     assert _pitch(root) > 0.3
+
+
+def test_a_level_trunk_goes_down_the_stairs_at_standing_height_over_each_step() -> None:
+    """From the stairs' top landing to the floor, the straight line between the two standing
+    roots runs too high over the lower steps for the humanoid's feet (the search then
+    wandered): laid over the terrain with no pitch, every pose of the line is level, valid,
+    descends, and stands at about the standing height above the steps under it."""
+    check = checker("humanoid", "stairs")
+    _, _, stand = body_span(check)
+    top = b.STAIRS_RISE * b.STAIRS_STEPS  # the top landing
+    start = _facing_x(3.1, 0.0, top + stand)
+    goal = _facing_x(0.4, 0.0, stand)
+    assert not edge_valid(check, start, goal, 0.05)
+    poses = straight_slope_path(check, start, goal, spacing=0.05, max_pitch=0.0)
+    assert poses is not None
+    assert all(check.is_valid(p) for p in poses)
+    np.testing.assert_allclose(poses[:, 2, 2], 1.0, atol=1e-9)  # level: z axis vertical
+    heights = poses[1:-1, 2, 3]
+    # descends, give or take the clearance added where the ground turns rough (the edge)
+    assert np.all(np.diff(heights) < 0.07)
+    assert heights[0] - heights[-1] > top - 0.1
+    on_flight = [
+        p[2, 3] - b.STAIRS_RISE * ((p[0, 3] - b.STAIRS_START_X) / b.STAIRS_TREAD)
+        for p in poses
+        if b.STAIRS_START_X + 0.3 < p[0, 3] < b.STAIRS_START_X + 4 * b.STAIRS_TREAD
+    ]
+    # over the ramp through the steps' back edges: the standing height, plus at most a rise
+    # (the line fitted to the treads) and the clearance over rough ground
+    above = np.array(on_flight) - stand
+    assert len(above) and np.all(above >= 0.0) and np.all(above <= b.STAIRS_RISE + 0.07)
+
+
+def test_a_plan_down_the_stairs_walks_the_level_terrain_guide_first() -> None:
+    """The humanoid down the stairs: its walk follows the terrain guide (stats
+    ``terrain_path``), one tread per step, and the plan is SOLVED."""
+    character, data = character_and_data("humanoid")
+    top = b.STAIRS_RISE * b.STAIRS_STEPS  # the top landing
+    result = plan_contact_motion(
+        scene("stairs"),
+        character,
+        data,
+        Endpoint(stand_at=np.array([3.1, 0.0, top])),
+        Endpoint(stand_at=np.array([0.4, 0.0, 0.0])),
+        rng=np.random.default_rng(1),
+        time_budget_s=30.0,
+        cap_s=600.0,
+    )
+    assert result.status is PlanStatus.SOLVED, result.message
+    assert result.stats.get("terrain_path") == 1
+    assert result.value is not None
+    guide = result.value.root_path
+    np.testing.assert_allclose(guide[:, 1, 3], 0.0, atol=1e-6)  # straight down the middle
