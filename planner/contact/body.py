@@ -129,17 +129,17 @@ against the scene: a sole resting on its surface is free, a toe inside a riser i
 
 
 def lifted_geometries(
-    character: Character, contacts: Sequence[tuple[str, FloatArray]]
+    character: Character, contacts: Sequence[tuple[str, FloatArray]], extra: float = 0.0
 ) -> dict[int, FloatArray]:
     """For each (limb, unit world normal (3,)) contact, the collision geometries carrying it,
     mapped to the world displacement (3,) they are tested at: along the normal, by
     ``CONTACT_LIFT`` plus how far the shape reaches below the sole (a bounding capsule of a
-    real robot's foot may hang 5 cm under it)."""
+    real robot's foot may hang 5 cm under it), plus ``extra`` m."""
     body = body_geometry(character)
     out: dict[int, FloatArray] = {}
     for name, normal in contacts:
         for g in body.exempt.get(name, frozenset()):
-            lift = CONTACT_LIFT + body.depth.get((name, g), 0.0)
+            lift = CONTACT_LIFT + body.depth.get((name, g), 0.0) + extra
             out[g] = lift * np.asarray(normal, dtype=np.float64)
     return out
 

@@ -187,14 +187,16 @@ def _touching(
     q: FloatArray,
     only: Sequence[int] | NDArray[np.int64] | None,
     contacts: Sequence[LimbContact],
+    lift: float = 0.0,
 ) -> list[tuple[int, FloatArray]]:
     """(geometry index, world placement (4, 4) it was tested at) of the character's shapes
-    touching the scene or obstacles at ``q``, the shapes carrying ``contacts`` raised."""
+    touching the scene or obstacles at ``q``, the shapes carrying ``contacts`` raised
+    (``lifted_geometries``, ``lift`` m more)."""
     geometry = ctx.character.geometry
     pin.updateGeometryPlacements(ctx.model, ctx.pin_data, geometry, ctx.geom_data, q)
     objects = geometry.geometryObjects
     indices = range(len(objects)) if only is None else [int(i) for i in only]
-    raised = lifted_geometries(ctx.character, [(c.limb, c.normal) for c in contacts])
+    raised = lifted_geometries(ctx.character, [(c.limb, c.normal) for c in contacts], lift)
     hits = []
     for i in indices:
         placement = np.array(ctx.geom_data.oMg[i].homogeneous)
@@ -239,18 +241,8 @@ def lifts_clear(ctx: ContactContext, q: FloatArray, contact: LimbContact, lift: 
     normal by ``lift`` m (half of it, then all of it) above where :func:`scene_collisions`
     tests them, touch neither the scene nor an obstacle: a sole set half under a rock's
     overhang could not lift off its foothold without driving into the rock."""
-    geometry = ctx.character.geometry
-    pin.updateGeometryPlacements(ctx.model, ctx.pin_data, geometry, ctx.geom_data, q)
-    objects = geometry.geometryObjects
-    normal = np.asarray(contact.normal, dtype=np.float64)
-    for i, raised in lifted_geometries(ctx.character, [(contact.limb, normal)]).items():
-        placement = np.array(ctx.geom_data.oMg[i].homogeneous)
-        for share in (0.5, 1.0):
-            moved = placement.copy()
-            moved[:3, 3] += raised + share * lift * normal
-            if _collide(ctx, objects[i].geometry, moved):
-                return False
-    return True
+    carrying = sorted(lifted_geometries(ctx.character, [(contact.limb, contact.normal)]))
+    return not any(_touching(ctx, q, carrying, (contact,), share * lift) for share in (0.5, 1.0))
 
 
 def self_collides(ctx: ContactContext, q: FloatArray) -> bool:

@@ -245,6 +245,33 @@ class _CharacterTerms:
     posture_weights: FloatArray
     limb_columns: dict[str, frozenset[int]]
     braking: BoolArray
+    chest: int | None
+    chest_limbs: frozenset[str]
+
+
+def _carried_limbs(character: Character, joint: int) -> frozenset[str]:
+    """The limbs whose effectors ``joint``'s subtree carries."""
+    model = character.model
+    subtree = set(model.subtrees[joint])
+    return frozenset(
+        limb.name
+        for limb in character.limbs
+        if int(model.frames[limb.frame_id].parentJoint) in subtree
+    )
+
+
+def chest_joint(character: Character) -> int | None:
+    """The joint id of the character's chest: the deepest joint of no limb (not the root)
+    whose subtree carries two limbs' effectors or more (a humanoid's torso pitch, under its
+    arms); None when only the root carries two (a quadruped's, a hexapod's trunk)."""
+    model = character.model
+    in_limbs = {int(j) for limb in character.limbs for j in limb.joint_ids}
+    best: int | None = None
+    for joint in range(2, model.njoints):
+        deeper = best is None or len(model.subtrees[joint]) < len(model.subtrees[best])
+        if joint not in in_limbs and deeper and len(_carried_limbs(character, joint)) >= 2:
+            best = joint
+    return best
 
 
 _TERMS: dict[int, tuple[Character, _CharacterTerms]] = {}
@@ -309,6 +336,7 @@ def _character_terms(character: Character) -> _CharacterTerms:
     for array in arrays:
         if isinstance(array, np.ndarray):
             _read_only(array)
+    chest = chest_joint(character)
     terms = _CharacterTerms(
         effectors=effector_geometries(character),
         frame_ids={limb.name: int(limb.frame_id) for limb in character.limbs},
@@ -334,28 +362,13 @@ def _character_terms(character: Character) -> _CharacterTerms:
         posture_weights=_read_only(posture_weights),
         limb_columns={limb.name: frozenset(int(i) for i in limb.idx_v) for limb in character.limbs},
         braking=_read_only(_position_limited(model)),
+        chest=chest,
+        chest_limbs=frozenset() if chest is None else _carried_limbs(character, chest),
     )
     if len(_TERMS) >= 64:
         _TERMS.clear()
     _TERMS[id(character)] = (character, terms)
     return terms
-
-
-def chest_joint(character: Character) -> int | None:
-    """The joint id of the character's chest: the deepest joint of no limb (not the root)
-    whose subtree carries two limbs' effectors or more (a humanoid's torso pitch, under its
-    arms); None when only the root carries two (a quadruped's, a hexapod's trunk)."""
-    model = character.model
-    carriers = [int(model.frames[limb.frame_id].parentJoint) for limb in character.limbs]
-    in_limbs = {int(j) for limb in character.limbs for j in limb.joint_ids}
-    best: int | None = None
-    for joint in range(2, model.njoints):
-        subtree = set(model.subtrees[joint])
-        carries = sum(1 for c in carriers if c in subtree)
-        deeper = best is None or len(subtree) < len(model.subtrees[best])
-        if joint not in in_limbs and carries >= 2 and deeper:
-            best = joint
-    return best
 
 
 class WholeBodyTracker:
@@ -438,17 +451,9 @@ class WholeBodyTracker:
         # the trunk tilt bound of the last objective, if the trunk aims upright and leans,
         # and the chest's, if the character has one and it leans
         self._tilt_row: tuple[FloatArray, FloatArray] | None = None
-        self._chest = chest_joint(character)
-        # the limbs the chest carries (a humanoid's arms): while one holds or reaches for a
-        # contact (a handrail, a climbing hold), the chest leans as that contact needs
-        self._chest_limbs: frozenset[str] = frozenset()
-        if self._chest is not None:
-            subtree = set(model.subtrees[self._chest])
-            self._chest_limbs = frozenset(
-                limb.name
-                for limb in character.limbs
-                if int(model.frames[limb.frame_id].parentJoint) in subtree
-            )
+        # the chest and the limbs it carries (a humanoid's arms): while one holds or reaches
+        # for a contact (a handrail, a climbing hold), the chest leans as that contact needs
+        self._chest, self._chest_limbs = terms.chest, terms.chest_limbs
         self._chest_row: tuple[FloatArray, FloatArray] | None = None
 
     def trunk_rotation(self, posture: FloatArray, level: bool = True) -> FloatArray:
@@ -700,8 +705,7 @@ class WholeBodyTracker:
         # vertical: dodging a ledge with its legs, the hexapod pitched 86 degrees mid-air
         aim = _WORLD_UP if upright else trunk[:, 2] if targets.exact_com else None
         self._tilt_row = self._tilt_bound(aim) if aim is not None else None
-        reaching = {limb for limb, _ in targets.stance} | {limb for limb, _ in moving}
-        free_chest = upright and not reaching & self._chest_limbs
+        free_chest = upright and not any(limb in self._chest_limbs for limb in in_use)
         self._chest_row = self._chest_bound() if free_chest else None
         stacked = np.concatenate(rows)  # 2-D blocks: vstack's result, without its checks
         hessian = stacked.T @ stacked
