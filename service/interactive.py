@@ -38,17 +38,19 @@ async def run_interactive(
     *,
     budget_s: float,
     answer_within_s: float,
+    short: bool = False,
 ) -> T:
     """``function(request_json, seed, deadline)`` in the interactive lane.
 
     ``deadline`` is the request's arrival plus ``budget_s``: a request still queued then is
     refused (503 ``queue_timeout``); one running past arrival plus ``answer_within_s`` is
     stopped (504). A full queue is a 503 at once; a client that disconnects stops the work.
+    ``short`` work (a Twister step) waits in its own queue, served first (:class:`Gate`).
     """
     lane: Lane = request.app.state.lanes.interactive
     arrived = arrival_time()
     deadline = arrived + budget_s
-    ticket = lane.admit()  # a full queue refuses before anything is started
+    ticket = lane.admit(short)  # a full queue refuses before anything is started
     work = asyncio.create_task(
         lane.run(
             function,

@@ -20,6 +20,11 @@ LogLevel = Literal["debug", "info", "warning", "error"]
 # Admission control (service.lanes). Seconds a refused client is told to wait (Retry-After),
 # per lane: interactive answers take about a second, uploads and background jobs longer.
 RETRY_AFTER_S = {"interactive": 1, "jobs": 5, "uploads": 5}
+SHORT_DEMAND_S = 10.0
+"""s: while a Twister step arrived this recently, plans and jumps leave
+``Settings.step_processes`` planning processes to steps: longer than a player's pause
+between moves, and than a load-test client's wait on a jump or plan (up to 5 s under load).
+"""
 UPLOAD_CONCURRENCY = 1  # uploads parsed at once per service worker (the others wait in line)
 # An uploaded mesh may have at most this many vertices per allowed triangle (counted before
 # duplicates merge): more is a file padded with vertices no triangle needs.
@@ -106,8 +111,25 @@ class Settings(BaseSettings):
         default=16,
         ge=0,
         le=1024,
-        description="plans, Twister steps and jumps that may wait for a planning process "
-        "(beyond those running) per service worker; more get 503 with Retry-After",
+        description="plans and jumps that may wait for a planning process (beyond those "
+        "running) per service worker; more get 503 with Retry-After",
+    )
+    step_queue: int = Field(
+        default=4,
+        ge=0,
+        le=1024,
+        description="Twister steps that may wait for a planning process per service worker "
+        "(served before the plans and jumps waiting); more get 503 with Retry-After. At "
+        "about 25 steps per second per process, 4 waiting keep a step's answer within "
+        "200 ms on 2 processes",
+    )
+    step_processes: int = Field(
+        default=1,
+        ge=0,
+        le=64,
+        description="planning processes (of GECKO_WORKER_PROCESSES, at most all but one) "
+        "that plans and jumps leave to Twister steps while steps keep coming (one arrived "
+        "in the last 10 s): a step never waits behind seconds of planning",
     )
     job_processes: int = Field(
         default=1,

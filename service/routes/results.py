@@ -98,6 +98,7 @@ async def run_answer(
         seed,
         budget_s=budget_s,
         answer_within_s=answer_within_s,
+        short=kind == "step",
     )
     annotate(
         kind=kind, result=ready.id, seed=seed, answer_status=ready.status, timings=ready.timings

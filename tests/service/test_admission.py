@@ -17,6 +17,7 @@ from typing import Any
 import httpx
 import pytest
 
+from service import lanes
 from service.settings import Settings
 from tests.live_fixtures import LIVE_JUMP, LIVE_PLAN, LIVE_STEP
 from tests.live_server import live_server, wait_until
@@ -40,6 +41,7 @@ def _settings(home: Path) -> Settings:
         characters="humanoid,quadruped",
         worker_processes=1,
         interactive_queue=1,
+        step_queue=1,
         job_processes=1,
         job_queue=1,
         log_level="warning",
@@ -53,7 +55,8 @@ def shared_home(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def server_a(shared_home: Path) -> Iterator[str]:
-    """One of two servers sharing a home: one planning process, one waiting place."""
+    """One of two servers sharing a home: one planning process, one waiting place for plans
+    and jumps and one for Twister steps."""
     with live_server(_settings(shared_home)) as url:
         yield url
 
@@ -147,9 +150,9 @@ def test_full_queue_deadline_from_arrival_and_client_disconnect(server_a: str) -
         )
         thread.start()
         wait_until(lambda: _lane(server_a, "gecko_queue_depth", "interactive") == 1, "step waits")
-        # No waiting place left: refused at once.
+        # No waiting place left for steps (GECKO_STEP_QUEUE=1): refused at once.
         full = httpx.post(f"{server_a}/v1/twister/step", json=LIVE_STEP, timeout=120)
-        _refused(full, "queue_full", "GECKO_INTERACTIVE_QUEUE=1")
+        _refused(full, "queue_full", "GECKO_STEP_QUEUE=1")
         thread.join(timeout=WAIT_S)
         _refused(waiting["r"], "queue_timeout")
     finally:
@@ -226,3 +229,32 @@ def test_a_job_survives_a_restart_as_interrupted(shared_home: Path, server_b: st
         assert again.json()["status"] in {"queued", "running"}
         deleted = httpx.delete(f"{restarted}/v1/roadmaps/{rid}", timeout=30)
         assert deleted.json()["status"] == "cancelled"
+
+
+def test_while_steps_come_a_jump_waits_rather_than_take_the_last_process(
+    shared_home: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Two planning processes: once a Twister step has come, plans and jumps hold one of
+    them (GECKO_STEP_PROCESSES=1) and a step runs at once on the other, never behind
+    them."""
+    # steps "keep coming" for the whole test however slow the machine (the server runs in
+    # this process); the lapse of the window is tested on the gate (tests/service/test_lanes)
+    monkeypatch.setattr(lanes, "SHORT_DEMAND_S", 3600.0)
+    settings = _settings(shared_home).model_copy(update={"worker_processes": 2})
+    with live_server(settings) as url:
+        first = httpx.post(f"{url}/v1/twister/step", json=LIVE_STEP, timeout=120)
+        assert first.status_code == 200, first.text
+        jumps = [_raw_post(url, "/v1/jumps", {**LONG_JUMP, "seed": s}) for s in (1, 2)]
+        try:
+            wait_until(lambda: _lane(url, "gecko_queue_depth", "interactive") == 1, "jump waits")
+            assert _lane(url, "gecko_lane_running", "interactive") == 1
+            step = httpx.post(f"{url}/v1/twister/step", json=LIVE_STEP, timeout=120)
+            assert step.status_code == 200, step.text
+            assert step.json()["status"] == "SOLVED"
+            # the second jump still waits: the step did not queue behind it
+            assert _lane(url, "gecko_queue_depth", "interactive") == 1
+            assert _lane(url, "gecko_lane_running", "interactive") == 1
+        finally:
+            for jump in jumps:
+                jump.close()
+        wait_until(lambda: _lane(url, "gecko_lane_running", "interactive") == 0, "jumps stop")
