@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Iterator
 from pathlib import Path
 
 import httpx
 import pytest
 from asgi_lifespan import LifespanManager
 
+from service import workers
 from service.app import create_app
 from service.settings import Settings
 from tests.paths import gecko_cache_dir
@@ -39,3 +40,11 @@ async def client(settings: Settings) -> AsyncIterator[httpx.AsyncClient]:
         httpx.AsyncClient(transport=httpx.ASGITransport(app=app), base_url="http://gecko") as c,
     ):
         yield c
+
+
+@pytest.fixture
+def in_process_worker(monkeypatch: pytest.MonkeyPatch, settings: Settings) -> Iterator[None]:
+    """This process serves as a planning worker (its own registry and settings)."""
+    monkeypatch.setattr(workers, "_WORKER_SETTINGS", settings)
+    monkeypatch.setattr(workers, "_WORKER_REGISTRY", workers.registry_for(settings))
+    yield

@@ -15,7 +15,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.contact.context import ContactContext, FailureReason
-from planner.contact.generation import ContactAttempt, break_contact, create_contact
+from planner.contact.generation import (
+    ContactAttempt,
+    break_contact,
+    create_contact,
+    state_from_configuration,
+)
 from planner.contact.state import ContactState
 from planner.contact.step_motion import StepMotion, step_motion
 from planner.motion import ComSegment, Keyframe, Phase, tuning
@@ -167,6 +172,13 @@ def twister_step(
         last = attempt
         if not attempt.ok:
             continue
+        canonical = _passed_back(ctx, attempt.state)
+        if not canonical.ok:
+            # the client would be refused this state as its next start: not an answer
+            message = f"the state reached is not valid as a start: {canonical.message}"
+            entry.update(ok=False, reason=FailureReason.INVALID_STATE.value, message=message)
+            last = replace(attempt, ok=False, reason=FailureReason.INVALID_STATE, message=message)
+            continue
         t0 = time.perf_counter()
         try:
             motion = step_motion(ctx, state, attempt.state, attempt.limb, rate=rate, timing=timing)
@@ -222,6 +234,18 @@ def twister_step(
         kind,
         attempt.limb,
     )
+
+
+def _passed_back(ctx: ContactContext, state: ContactState) -> ContactAttempt:
+    """``state`` as a client passes it back for the next step: its configuration and each
+    contact's limb and surface, the contacts placed again where the configuration puts them
+    (:func:`state_from_configuration`). A contact held while the body moved keeps the
+    placement it was made with; a point foot turns about it meanwhile, and the kinematic
+    polytope of the foot's placement now (its frame turned with the shin) may leave the COM
+    outside where the one it was made with did not (a hexapod's state 4.6 mm out, refused
+    when sent back)."""
+    contacts: dict[str, int | None] = {c.limb: c.surface for c in state.contacts}
+    return state_from_configuration(ctx, state.q, contacts)
 
 
 @dataclass(frozen=True, slots=True)

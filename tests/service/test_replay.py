@@ -10,14 +10,12 @@ plan stopped by the clock would differ under load. The wall-clock cap is set far
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
 from typing import Any
 
 import pytest
 
-from service import compute, workers
+from service import compute
 from service.schemas import PlanRequest
-from service.settings import Settings
 from tests.cpu_burner import cpu_burners
 
 FAR_CAP_S = 600.0  # s: a cap no machine reaches on this plan
@@ -32,14 +30,6 @@ RUBBLE = PlanRequest.model_validate(
         "time_budget_s": 4,  # 30 s solves it; 4 s of work walks part of the way
     }
 )
-
-
-@pytest.fixture
-def in_process_worker(monkeypatch: pytest.MonkeyPatch, settings: Settings) -> Iterator[None]:
-    """This process serves as a planning worker (its own registry and settings)."""
-    monkeypatch.setattr(workers, "_WORKER_SETTINGS", settings)
-    monkeypatch.setattr(workers, "_WORKER_REGISTRY", workers.registry_for(settings))
-    yield
 
 
 def _plan(request: PlanRequest) -> dict[str, Any]:

@@ -9,7 +9,6 @@ import json
 import threading
 import time
 from collections import OrderedDict
-from collections.abc import Iterator
 from typing import Any
 
 import pytest
@@ -20,8 +19,7 @@ from planner.kinematics import borrowed_data, borrowed_geometry_data
 from planner.kinematics import model as kinematics_model
 from planner.motion import clearance, tracker
 from planner.scene import affordance
-from service import compute, workers
-from service.settings import Settings
+from service import compute
 
 FAR_CAP_S = 600.0  # s: a cap no step reaches (the clock never decides these answers)
 
@@ -39,14 +37,6 @@ OTHER = {
     "action": {"kind": "auto"},
     "seed": 5,
 }
-
-
-@pytest.fixture
-def in_process_worker(monkeypatch: pytest.MonkeyPatch, settings: Settings) -> Iterator[None]:
-    """This process serves as a planning worker (its own registry and settings)."""
-    monkeypatch.setattr(workers, "_WORKER_SETTINGS", settings)
-    monkeypatch.setattr(workers, "_WORKER_REGISTRY", workers.registry_for(settings))
-    yield
 
 
 def _answer(request: dict[str, Any]) -> dict[str, Any]:
