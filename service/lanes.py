@@ -56,12 +56,24 @@ class Ticket:
             self._gate = None
 
 
+@dataclass(frozen=True, slots=True)
+class ShortLine:
+    """Short work's own line in a gate (Twister steps): at most ``queue`` of it waiting (a
+    refusal names ``setting``, the bound's environment variable), served before the long work
+    waiting; ``reserved`` slots that long work leaves to it while it keeps coming."""
+
+    queue: int = 0
+    setting: str = ""
+    reserved: int = 0
+
+
 class Gate:
     """At most ``slots`` pieces of work at once, ``queue`` more waiting, the rest refused.
 
-    Short work (Twister steps: tens of ms) has its own bound, ``short_queue`` waiting, and
-    is served before the long work waiting; and while short work keeps coming (some admitted
-    within the last ``SHORT_DEMAND_S``), long work holds at most ``slots - reserved`` slots,
+    Short work (Twister steps: tens of ms) has its own line (``short``: a bound on its
+    waiting, served before the long work waiting); and while short work keeps coming (some
+    admitted within the last ``SHORT_DEMAND_S``), long work holds at most ``slots -
+    short.reserved`` slots,
     so a step never waits behind plans and jumps that take seconds. Past that window long
     work may use every slot again. (A process added for steps alone instead shared the
     cores three ways: steps alone ran 35-41 per second, p99 184-349 ms, against 44-49 per
@@ -76,19 +88,16 @@ class Gate:
         queue: int,
         setting: str,
         metrics: Metrics,
-        short_queue: int = 0,
-        short_setting: str = "",
-        reserved: int = 0,
+        short: ShortLine = ShortLine(),
     ) -> None:
-        if not 0 <= reserved < max(slots, 1):
-            raise ValueError(f"reserved: 0 to {slots - 1} slots of {slots}, got {reserved}")
+        if not 0 <= short.reserved < max(slots, 1):
+            message = f"reserved: 0 to {slots - 1} slots of {slots}, got {short.reserved}"
+            raise ValueError(message)
         self.name = name
         self.slots = slots
         self.queue = queue
         self.setting = setting  # the environment variable of the queue's bound (for messages)
-        self.short_queue = short_queue
-        self.short_setting = short_setting
-        self.reserved = reserved
+        self.short = short
         self._metrics = metrics
         self._admitted = {False: 0, True: 0}  # admitted (running or waiting), long / short
         self._running = {False: 0, True: 0}
@@ -125,15 +134,15 @@ class Gate:
 
     def admit(self, short: bool = False) -> Ticket:
         """A place in the gate, or a 503 (``queue_full``) when every place is taken: long
-        work past ``slots + queue`` of it admitted, short work past ``short_queue`` of it
+        work past ``slots + queue`` of it admitted, short work past ``short.queue`` of it
         waiting beyond the free slots."""
         admitted, running = self._admitted[short], self._running[short]
         # short work admitted and not running yet (some about to take a free slot)
-        if short and admitted - running >= self.short_queue + self._free:
+        if short and admitted - running >= self.short.queue + self._free:
             message = (
                 f"the {self.name} queue of Twister steps is full ({running} running, "
                 f"{admitted - running - self._free} waiting; limit "
-                f"{self.short_setting}={self.short_queue})"
+                f"{self.short.setting}={self.short.queue})"
             )
             raise self._refuse("queue_full", message)
         if not short and admitted >= self.slots + self.queue:
@@ -151,9 +160,10 @@ class Gate:
         self._admitted[short] -= 1
 
     def _long_slots(self) -> int:
-        """Slots long work may hold now: all but ``reserved`` while short work is coming."""
+        """Slots long work may hold now: all but ``short.reserved`` while short work is
+        coming."""
         if time.monotonic() - self._short_seen < SHORT_DEMAND_S:
-            return self.slots - self.reserved
+            return self.slots - self.short.reserved
         return self.slots
 
     def _can_start(self, short: bool) -> bool:
@@ -234,19 +244,10 @@ class Lane(Gate):
         setting: str,
         settings: Settings,
         metrics: Metrics,
-        short_queue: int = 0,
-        short_setting: str = "",
-        reserved: int = 0,
+        short: ShortLine = ShortLine(),
     ) -> None:
         super().__init__(
-            name,
-            slots=processes,
-            queue=queue,
-            setting=setting,
-            metrics=metrics,
-            short_queue=short_queue,
-            short_setting=short_setting,
-            reserved=reserved,
+            name, slots=processes, queue=queue, setting=setting, metrics=metrics, short=short
         )
         # One BLAS thread per worker: the matrices are small, and workers share the cores.
         for variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
@@ -468,10 +469,12 @@ class Lanes:
             setting="GECKO_INTERACTIVE_QUEUE",
             settings=settings,
             metrics=metrics,
-            short_queue=settings.step_queue,
-            short_setting="GECKO_STEP_QUEUE",
-            # a process left to steps needs another for plans and jumps
-            reserved=min(settings.step_processes, settings.worker_processes - 1),
+            short=ShortLine(
+                settings.step_queue,
+                "GECKO_STEP_QUEUE",
+                # a process left to steps needs another for plans and jumps
+                min(settings.step_processes, settings.worker_processes - 1),
+            ),
         )
         self.jobs = Lane(
             "jobs",

@@ -14,7 +14,7 @@ import pytest
 
 from service import lanes
 from service.errors import ApiError
-from service.lanes import Gate
+from service.lanes import Gate, ShortLine
 from service.metrics import Metrics
 
 WAIT_S = 30.0  # the longest any wait below may take before the test fails
@@ -52,9 +52,7 @@ def _gate(slots: int, reserved: int = 0, short_queue: int = 4) -> Gate:
         queue=4,
         setting="GECKO_INTERACTIVE_QUEUE",
         metrics=Metrics(),
-        short_queue=short_queue,
-        short_setting="GECKO_STEP_QUEUE",
-        reserved=reserved,
+        short=ShortLine(short_queue, "GECKO_STEP_QUEUE", reserved),
     )
 
 
@@ -143,4 +141,4 @@ async def test_steps_past_their_queue_are_refused_at_once_naming_the_limit() -> 
 def test_a_gate_keeps_a_slot_for_long_work() -> None:
     with pytest.raises(ValueError, match="reserved"):
         _gate(slots=2, reserved=2)
-    assert _gate(slots=1, reserved=0).reserved == 0
+    assert _gate(slots=1, reserved=0).short.reserved == 0
