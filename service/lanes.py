@@ -75,9 +75,9 @@ class Gate:
     admitted within the last ``SHORT_DEMAND_S``), long work holds at most ``slots -
     short.reserved`` slots,
     so a step never waits behind plans and jumps that take seconds. Past that window long
-    work may use every slot again. (A process added for steps alone instead shared the
-    cores three ways: steps alone ran 35-41 per second, p99 184-349 ms, against 44-49 per
-    second, p99 150-220 ms, on two processes.)
+    work may use every slot again. (A third process for steps alone instead shared the two
+    cores three ways: steps alone at 4 to 64 clients ran 35-41 per second, p99 184-349 ms,
+    against 44-49 per second, p99 150-220 ms, on two processes, 4 steps waiting in both.)
     """
 
     def __init__(
