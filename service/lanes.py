@@ -73,11 +73,12 @@ class Gate:
     Short work (Twister steps: tens of ms) has its own line (``short``: a bound on its
     waiting, served before the long work waiting); and while short work keeps coming (some
     admitted within the last ``SHORT_DEMAND_S``), long work holds at most ``slots -
-    short.reserved`` slots,
-    so a step never waits behind plans and jumps that take seconds. Past that window long
-    work may use every slot again. (A third process for steps alone instead shared the two
-    cores three ways: steps alone at 4 to 64 clients ran 35-41 per second, p99 184-349 ms,
-    against 44-49 per second, p99 150-220 ms, on two processes, 4 steps waiting in both.)
+    short.reserved`` slots, so a step never waits behind plans and jumps that take seconds.
+    Past that window long work may use every slot again. A line holds only work still
+    waiting (work handed a slot or gone is taken out of it). (A third process for steps
+    alone instead shared the two cores three ways: steps alone at 4 to 64 clients ran 35-41
+    per second, p99 184-349 ms, against 44-49 per second, p99 150-220 ms, on two processes,
+    4 steps waiting in both.)
     """
 
     def __init__(
@@ -177,8 +178,8 @@ class Gate:
         """Wait in line for a slot (short work in its own line, served first); a 503
         (``queue_timeout``) if ``start_by`` (monotonic s) passes first. The caller gives the
         slot back with :meth:`give_slot`."""
-        ahead = self._waiters[True] if short else (*self._waiters[True], *self._waiters[False])
-        if self._can_start(short) and not any(not w.done() for w in ahead):
+        ahead = self._waiters[True] or (not short and self._waiters[False])
+        if self._can_start(short) and not ahead:
             self._hand(short)
             return
         waiter = asyncio.get_running_loop().create_future()
@@ -215,8 +216,8 @@ class Gate:
                 if not waiter.done():
                     self._hand(short)
                     waiter.set_result(None)
-        held_back = self._free > 0 and any(not w.done() for w in self._waiters[False])
-        if held_back and self._recheck is None:
+        if self._free > 0 and self._waiters[False] and self._recheck is None:
+            # long work waits only for the reservation to lapse: look again then
             delay = max(0.0, self._short_seen + SHORT_DEMAND_S - time.monotonic())
             self._recheck = asyncio.get_running_loop().call_later(delay, self._rechecked)
 
