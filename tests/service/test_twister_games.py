@@ -44,6 +44,7 @@ def test_every_state_answered_is_accepted_back(character: str, game: int) -> Non
             del request["stand_at"]
             request |= {"state": state}
         request["seed"] = draw.randrange(2**31)
+        request["time_budget_s"] = 60  # the most: the clock never cuts a move's attempts
         answer = _step(request)  # a state answered before and refused now raises (422)
         if answer["status"] != "SOLVED":
             assert answer["failure"]["reason"], answer
