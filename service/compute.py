@@ -49,11 +49,14 @@ def timing_of(options: schemas.TimingOptionsIn) -> Timing:
     """The planner's COM timing from a request's options (bounds checked by the schema); a
     Twister step's transition point is its new state's COM, so only plans choose a cost."""
     cost = TransitionCost("tired")
+    overlap = True
     if isinstance(options, schemas.PlanOptionsIn):
         cost = TransitionCost(options.transition_cost, strength=options.cost_strength)
+        overlap = options.overlap_swings
     return Timing(
         speed=options.speed,
         cost=cost,
+        overlap=overlap,
         attractors=tuple(
             (a.transition, np.asarray(a.point, dtype=np.float64)) for a in options.attractors
         ),

@@ -555,6 +555,12 @@ class PlanOptionsIn(TimingOptionsIn):
     cost_strength: float = Field(
         default=0.3, ge=0, le=2.0, description="m, weight of the groovy/to_one_side/low terms"
     )
+    overlap_swings: bool = Field(
+        default=True,
+        description="a walker on four legs or more lifts its next leg before the last one "
+        "lands, on level ground where the dynamics allow (report.overlapped_swings counts "
+        "the pairs); false swings one leg at a time",
+    )
 
     rate: Rate = 30.0
     margin: float = Field(default=1.0, ge=0, le=1000, description="equilibrium robustness, N")

@@ -185,6 +185,13 @@ class _Targets:
         # per phase, its stance as (limb, placement (4, 4)) pairs, made once
         self._stances: dict[int, tuple[tuple[str, FloatArray], ...]] = {}
         self._substeps: dict[int, int] = {}
+        # per phase carrying an early swing, the phase that swing lands at the end of
+        self._lands_in: dict[int, int] = {}
+        for k, phase in enumerate(spec.phases):
+            if phase.early is not None:
+                self._lands_in[k] = next(
+                    j for j in range(k + 1, len(spec.phases)) if spec.phases[j].swing is phase.early
+                )
 
     def substeps(self, k: int) -> int:
         """Control steps per keyframe period in phase k: ``FAST_SUBSTEPS`` in a flight and in
@@ -239,7 +246,7 @@ class _Targets:
             self._arcs[key] = swing_trajectory(
                 swing.start,
                 swing.end,
-                phase.t0,
+                self.lift_off(phase),
                 self.landing(phase),
                 lift=lift,
                 normal_in_frame=normal,
@@ -262,7 +269,7 @@ class _Targets:
             self._arcs[key] = clearing_swing_trajectory(
                 swing.start,
                 swing.end,
-                phase.t0,
+                self.lift_off(phase),
                 self.landing(phase),
                 rise=top + max(0.0, float((p3 - p0) @ n0)),
                 descend=top + max(0.0, float((p0 - p3) @ n3)),
@@ -270,6 +277,22 @@ class _Targets:
                 rise_share=tuning.CLEARING_RISE_SHARE,
             )
         return self._arcs[key]
+
+    @staticmethod
+    def lift_off(phase: MotionPhase) -> float:
+        """s, when the swing of ``phase`` leaves its start: its ``lift_off`` (an overlapping
+        swing, carried as ``early`` by the phases before) or the phase's start."""
+        swing = phase.swing
+        return phase.t0 if swing is None or swing.lift_off is None else swing.lift_off
+
+    def early(self, k: int, t: float) -> tuple[tuple[str, FloatArray], ...]:
+        """(limb, pose (4, 4)) of phase k's early swing at ``t`` on the arc of the phase it
+        lands in (none without one)."""
+        phase = self.spec.phases[k]
+        if phase.early is None:
+            return ()
+        arc = self.arc(self._lands_in[k])
+        return ((phase.early.limb, np.asarray(arc(t), dtype=np.float64)),)
 
     @staticmethod
     def landing(phase: MotionPhase) -> float:
@@ -372,6 +395,7 @@ class _Targets:
                 phase.posture,
                 k not in self.unguarded,
                 phase.level_trunk,
+                carried=self.early(k, t),
                 rigid_stance=phase.rigid_stance,
                 swing_settle=settle,
             )
@@ -449,7 +473,7 @@ def _clearing_top(targets: _Targets, checker: KeyframeChecker, k: int) -> float:
         if int(objects[i].parentJoint) == int(frame.parentJoint)
     ]
     p0, p3 = swing.start[:3, 3], swing.end[:3, 3]
-    times = np.linspace(phase.t0, targets.landing(phase), tuning.CLEARING_SAMPLES)
+    times = np.linspace(targets.lift_off(phase), targets.landing(phase), tuning.CLEARING_SAMPLES)
     # along the normal only (the rise before the crossing starts, the descent after it ends)
     # the tracked effector lags along its own line: a smaller margin there
     share = (times - times[0]) / (times[-1] - times[0])
@@ -742,6 +766,10 @@ def _build_motion(
         if flight:
             # a colliding flight is tracked again with its limbs tucked further
             attempts = [(float(n), True, False) for n in range(len(tuning.FLIGHT_TUCKS) + 1)]
+        elif swing is not None and swing.lift_off is not None:
+            # an overlapping swing: the phases before already followed its arc, which a
+            # retry would move under them
+            attempts = [(swing.lift, True, False)]
         elif swing is not None:
             lifts = [swing.lift, *(x for x in tuning.SWING_LIFTS if x > swing.lift)]
             # then a box-shaped path over what the arcs run into; last resort: the highest

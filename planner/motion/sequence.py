@@ -25,7 +25,15 @@ from planner.character import Character
 from planner.kinematics import com_position, frame_placement
 from planner.motion import tuning
 from planner.motion.builder import BuiltMotion, MotionReport, build_motion
-from planner.motion.spec import MotionPhase, MotionSpec, Swing, natural_posture, torso_columns
+from planner.motion.overlap import Overlap, overlap_swings
+from planner.motion.spec import (
+    MotionPhase,
+    MotionSpec,
+    Swing,
+    natural_posture,
+    swing_length,
+    torso_columns,
+)
 from planner.motion.types import ComSegment, Keyframe, Phase
 from planner.offline import OfflineData
 from planner.termination import Termination, never
@@ -49,7 +57,9 @@ class Timing:
     [MIN_SPEED, MAX_SPEED]. cost : the transition-point cost ("tired" by default).
     attractors : user-placed transition points, (phase change index, world point (3,) m);
     each is honoured when it is in static equilibrium and reachable for both phases it
-    joins, refused otherwise (the report says which and why).
+    joins, refused otherwise (the report says which and why). overlap : a walker on four
+    legs or more lifts its next leg before the last one lands where the ground and the
+    dynamics allow (``planner.motion.overlap``); False swings one leg at a time.
     """
 
     speed: float = 1.0
@@ -57,6 +67,7 @@ class Timing:
         default_factory=lambda: trajectory.TransitionCost("tired")
     )
     attractors: tuple[tuple[int, FloatArray], ...] = ()
+    overlap: bool = True
 
     def __post_init__(self) -> None:
         if not MIN_SPEED <= self.speed <= MAX_SPEED:
@@ -229,6 +240,20 @@ def _last_placement(
     return frame_placement(character.model, q, character.limb(limb).effector_frame)
 
 
+def _swing_length(character: Character, states: Sequence[ContactState], k: int, limb: str) -> float:
+    """m, the length (``spec.swing_length``) of the swing of phase k, which puts ``limb``
+    on its contact of state k + 1, along the normals of that contact and of the limb's last
+    one before."""
+    target = states[k + 1].contact(limb)
+    assert target is not None
+    start = _last_placement(character, states, k, limb, states[k].q)
+    normals = [target.normal]
+    last = next((c for s in reversed(states[: k + 1]) if (c := s.contact(limb))), None)
+    if last is not None:
+        normals.append(last.normal)
+    return swing_length(start[:3, 3], target.placement[:3, 3], normals)
+
+
 def user_transitions(
     phases: Sequence[trajectory.ContactPhase],
     kinematics: Sequence[trajectory.Halfspaces | None],
@@ -300,39 +325,49 @@ def swing_durations(
     chest's standing up (:func:`_chest_turns_s`)."""
     out = []
     turns = _chest_turns_s(character, states)
-    for k, state in enumerate(states):
+    for k in range(len(states)):
         chest = turns[k]
         limb = _swinging_limb(states, k)
         if limb is None:
             out.append(max(tuning.MIN_SHIFT_S / speed, chest))
             continue
-        target = states[k + 1].contact(limb)
-        assert target is not None
-        start = _last_placement(character, states, k, limb, state.q)
-        reach = float(np.linalg.norm(np.asarray(target.placement)[:3, 3] - start[:3, 3]))
+        reach = _swing_length(character, states, k, limb)
         out.append(max(max(tuning.MIN_SWING_S, reach / tuning.SWING_SPEED) / speed, chest))
     return out
 
 
 def dynamic_durations(
-    character: Character, states: Sequence[ContactState], speed: float = 1.0
+    character: Character,
+    states: Sequence[ContactState],
+    speed: float = 1.0,
+    pairs: Collection[int] = (),
 ) -> list[float]:
     """Per state, how long its phase lasts when the COM moves dynamically (s): a swing
     ``DYNAMIC_MIN_SWING_S`` or its distance at ``DYNAMIC_SWING_SPEED``, whichever is longer,
     a shift ``DYNAMIC_SHIFT_S``, all divided by ``speed``, and at least the chest's turn
     (:func:`_chest_turns_s`); the first and last phase at least ``DYNAMIC_END_S`` whatever
-    the speed."""
+    the speed. ``pairs`` : the first phase of each pair of overlapped swings
+    (``overlap.Overlap``, ``states`` its states): that phase and the third last
+    ``OVERLAP_LEAD_S`` each, the second (both legs in the air) the longer of the two swings
+    less that, the shift before the pair ``OVERLAP_SHIFT_S``."""
     out = []
     turns = _chest_turns_s(character, states)
-    for k, state in enumerate(states):
+    swings = []
+    for k in range(len(states)):
         limb = _swinging_limb(states, k)
         duration = tuning.DYNAMIC_SHIFT_S
         if limb is not None:
-            target = states[k + 1].contact(limb)
-            assert target is not None
-            start = _last_placement(character, states, k, limb, state.q)
-            reach = float(np.linalg.norm(np.asarray(target.placement)[:3, 3] - start[:3, 3]))
+            reach = _swing_length(character, states, k, limb)
             duration = max(tuning.DYNAMIC_MIN_SWING_S, reach / tuning.DYNAMIC_SWING_SPEED)
+        swings.append(duration)
+    lead = tuning.OVERLAP_LEAD_S
+    for first in pairs:
+        both = max(swings[first + 1], swings[first + 2])
+        swings[first] = swings[first + 2] = lead
+        swings[first + 1] = max(both - lead, lead)
+        if first >= 2 and _swinging_limb(states, first - 1) is None:
+            swings[first - 1] = tuning.OVERLAP_SHIFT_S  # the weight shift before the pair
+    for k, duration in enumerate(swings):
         duration = max(duration / speed, turns[k])
         if k in (0, len(states) - 1):  # starting from rest and stopping take their time
             duration = max(duration, tuning.DYNAMIC_END_S)
@@ -444,6 +479,36 @@ def _dynamic_window(
         before=before,
         after=after,
     )
+
+
+def _overlapped_com(
+    character: Character,
+    data: OfflineData,
+    overlap: Overlap,
+    reference: trajectory.ComTrajectory,
+    speed: float,
+    factor: float,
+    rate: float,
+) -> trajectory.DynamicCom | None:
+    """The dynamic COM QP through the states of ``overlap`` (at rest at both ends), phases
+    lasting :func:`dynamic_durations` with its pairs times ``factor``, and at least
+    ``OVERLAP_MIN_PERIODS`` keyframe periods at ``rate`` (1/s), near 2PAC's ``reference``
+    curve through the states first given (as many phases); None unless a curve passes Eq. 1
+    at every collocation time (``OVERLAP_ITERATIONS``, no margin)."""
+    states = overlap.states
+    durations = dynamic_durations(character, states, speed, overlap.pairs)
+    shortest = tuning.OVERLAP_MIN_PERIODS / rate
+    found = trajectory.dynamic_com(
+        [contact_phase(character, s) for s in states],
+        [max(d * factor, shortest) for d in durations],
+        com_position(character.model, states[0].q),
+        com_position(character.model, states[-1].q),
+        kinematics=plan_kinematics(character, data, states),
+        reference=reference.curve,
+        reference_times=list(reference.phase_times),
+        settings=trajectory.DynamicSettings(margin=0.0, iterations=tuning.OVERLAP_ITERATIONS),
+    )
+    return found if found is not None and found.valid else None
 
 
 def _rest_point(model: Any, states: Sequence[ContactState], j: int) -> FloatArray:
@@ -663,30 +728,41 @@ def sequence_motion(
         times: FloatArray,
         trial: bool = False,
         resume: tuple[BuiltMotion, int] | None = None,
+        overlap: Overlap | None = None,
     ) -> BuiltMotion:
         """The whole-body motion along ``curve``; a ``trial`` (a dynamic curve) holds its
         stance contacts rigidly and is abandoned at its first unclean phase; ``resume``
-        keeps an earlier build's keyframes before a phase (``build_motion``)."""
-        spec_phases = []
-        for k, state in enumerate(states):
-            swing = None
-            swing_limb = _swinging_limb(states, k)
+        keeps an earlier build's keyframes before a phase (``build_motion``); ``overlap``:
+        the phases hold its states, its pairs of swings overlapping."""
+        held = list(overlap.states) if overlap is not None else states
+        # the second and third phase of an overlapped pair land swings that lifted off a
+        # phase earlier
+        late = {k for first in (overlap.pairs if overlap else ()) for k in (first + 1, first + 2)}
+        swings: dict[int, Swing] = {}
+        for k in range(len(held)):
+            swing_limb = _swinging_limb(held, k)
             if swing_limb is not None:
-                target = states[k + 1].contact(swing_limb)
+                target = held[k + 1].contact(swing_limb)
                 assert target is not None
-                start = _last_placement(character, states, k, swing_limb, states[k].q)
-                swing = Swing(swing_limb, start, np.asarray(target.placement), lift)
-            aim = states[min(k + 1, len(states) - 1)]
-            posture = natural_posture(character, np.asarray(aim.q), aim.limbs)
+                start = _last_placement(character, held, k, swing_limb, held[k].q)
+                lift_off = float(times[k - 1]) if k in late else None
+                swings[k] = Swing(swing_limb, start, np.asarray(target.placement), lift, lift_off)
+        spec_phases = []
+        for k, state in enumerate(held):
+            aim = held[min(k + 1, len(held) - 1)]
+            early = swings.get(k + 1) if k + 1 in late else None
+            moving = [x.limb for x in (swings.get(k), early) if x is not None]
+            posture = natural_posture(character, np.asarray(aim.q), [*aim.limbs, *moving])
             spec_phases.append(
                 MotionPhase(
                     float(times[k]),
                     float(times[k + 1]),
                     state.contacts,
                     posture,
-                    swing,
+                    swings.get(k),
                     rigid_stance=trial,
                     quasi_static=k in resting,
+                    early=early,
                 )
             )
         spec = MotionSpec(np.asarray(states[0].q), tuple(spec_phases), curve, rate)
@@ -711,7 +787,30 @@ def sequence_motion(
     n = len(states)
     dynamic: trajectory.DynamicCom | None = None
     factors_tried: list[float] = []
-    if n >= 2:
+    overlapped: Overlap | None = None
+    resting: set[int] = set()  # phases stopping at rest between phases (2PAC's fallback)
+    # a walker's swings overlapped first where the ground allows (``overlap``): kept when
+    # its curve passes Eq. 1 and its one trial build comes clean, else the plan goes on
+    # with its swings one at a time
+    overlap = overlap_swings(character, states) if timing.overlap else None
+    for factor in tuning.OVERLAP_PACES if overlap is not None else ():
+        assert overlap is not None
+        overlap_com = _overlapped_com(character, data, overlap, com_trajectory, speed, factor, rate)
+        if overlap_com is None:
+            trials.append(f"overlapped swings at {factor:g}: no curve passes Eq. 1")
+            continue
+        times_o = np.asarray(overlap_com.phase_times, dtype=np.float64)
+        candidate = build(overlap_com.curve, times_o, trial=True, overlap=overlap)
+        why = candidate.report.shortfall()
+        if why is not None and not candidate.report.cut_short:
+            trials.append(f"overlapped swings at {factor:g}: {why}")
+            continue
+        built, factors = candidate, [factor] * n
+        curve, times = overlap_com.curve, times_o
+        methods = ("2pac+dynamic",) * n
+        overlapped = overlap
+        break
+    if n >= 2 and built is None:
         dynamic, factors_tried = dynamic_com(
             character, data, states, com_trajectory, speed, None, levels
         )
@@ -774,7 +873,8 @@ def sequence_motion(
         return spliced, used, lo
 
     builds = max(tuning.DYNAMIC_MAX_BUILDS, math.ceil(tuning.DYNAMIC_BUILDS_PER_PHASE * n))
-    resting: set[int] = set()  # phases stopping at rest between phases (2PAC's fallback)
+    if built is not None:
+        builds = 0
     tried = 0
     while tried < builds + tuning.DYNAMIC_MAX_BUILDS * len(replans):  # re-plans add builds
         tried += 1
@@ -914,6 +1014,8 @@ def sequence_motion(
             )
         elif replans:
             replans.append("no clean dynamic curve with the re-planned changes: all undone")
+    if overlapped is not None:
+        phases_tr = [contact_phase(character, s) for s in overlapped.states]
     reports = trajectory.validate_dynamics(curve, phases_tr, times)
     report: dict[str, object] = {
         **built.report.as_dict(),
@@ -926,6 +1028,7 @@ def sequence_motion(
         "quasi_static_feasible": bool(com_trajectory.quasi_static_feasible),
         "transition_slack": [float(t.slack) for t in com_trajectory.transitions],
         "phase_methods": list(methods),
+        "overlapped_swings": 0 if overlapped is None else len(overlapped.pairs),
         "speed": speed,
         "transition_cost": timing.cost.kind,
         "attractors": attractor_report,

@@ -28,12 +28,28 @@ FloatArray = NDArray[np.float64]
 @dataclass(frozen=True, slots=True)
 class Swing:
     """``limb`` moves its effector from ``start`` (4, 4) to ``end`` (4, 4) over its phase,
-    along an arc rising ``lift`` m along the contact normals (see ``swing_trajectory``)."""
+    along an arc rising ``lift`` m along the contact normals (see ``swing_trajectory``).
+    ``lift_off`` : s, when it leaves ``start`` if before its phase's start (an overlapping
+    swing: the phases before, from then on, carry it as their ``early`` swing); None: at
+    its phase's start."""
 
     limb: str
     start: FloatArray
     end: FloatArray
     lift: float
+    lift_off: float | None = None
+
+
+def swing_length(start: FloatArray, end: FloatArray, normals: Sequence[FloatArray]) -> float:
+    """m, how far an effector travels from ``start`` (3,) to ``end`` (3,) as a swing's timing
+    counts it: the straight distance plus ``SWING_RISE_WEIGHT`` times its rise along the
+    contact ``normals`` (unit (3,), world frame: the largest) beyond ``SWING_RISE_FREE``. A
+    foot stepping up a flight of stairs must first clear the tread between; one stepping down
+    falls, and a hand moving along a wall does not rise off it."""
+    delta = np.asarray(end, dtype=np.float64) - np.asarray(start, dtype=np.float64)
+    rise = max((float(delta @ np.asarray(n)) for n in normals), default=0.0)
+    extra = tuning.SWING_RISE_WEIGHT * max(0.0, rise - tuning.SWING_RISE_FREE)
+    return float(np.linalg.norm(delta)) + extra
 
 
 @dataclass(frozen=True, slots=True)
@@ -76,6 +92,10 @@ class MotionPhase:
     and the carried limbs' offsets from the COM turn from it to ``posture``'s orientation
     as the flight goes on, so that legs turning with the body do not cross (None: the trunk
     is aimed at ``posture``'s orientation from the start).
+    early : a swing of another limb that lifted off in this phase or before and lands at the
+    end of a later phase (swings overlapping in time: a quadruped's diagonal legs); its
+    effector follows that swing's arc (the same ``Swing``, whose ``lift_off`` says when it
+    left) with the swing's cost.
     posture_from : for a ``fast_com`` phase on the ground, (nq,) the configuration pulled
     toward at its start (its root aimed, like ``posture``'s, at ``t0``): the target moves from
     it to ``posture`` (``pin.interpolate``) as the COM goes from the curve's point at ``t0``
@@ -95,10 +115,26 @@ class MotionPhase:
     quasi_static: bool = False
     turn_from: FloatArray | None = None
     posture_from: FloatArray | None = None
+    early: Swing | None = None
 
     def __post_init__(self) -> None:
-        if self.flight is not None and (self.stance or self.swing is not None):
+        if self.flight is not None and (
+            self.stance or self.swing is not None or self.early is not None
+        ):
             raise ValueError("a flight holds no stance and has no swing")
+        if self.early is not None and (
+            self.early.lift_off is None
+            or self.early.lift_off > self.t0 + 1e-9
+            or (self.swing is not None and self.swing.limb == self.early.limb)
+            or any(c.limb == self.early.limb for c in self.stance)
+        ):
+            raise ValueError("early: another limb's swing, free here, lifted off by t0")
+        if (
+            self.swing is not None
+            and self.swing.lift_off is not None
+            and (self.swing.lift_off > self.t0 + 1e-9)
+        ):
+            raise ValueError("swing.lift_off: at its phase's start or before")
         if self.posture_from is not None and (self.flight is not None or not self.fast_com):
             raise ValueError("posture_from: only a fast_com phase on the ground")
         if self.turn_from is not None and self.flight is None:
@@ -132,6 +168,8 @@ class MotionSpec:
         for a, b in zip(self.phases, self.phases[1:], strict=False):
             if abs(a.t1 - b.t0) > 1e-9 or b.t1 < b.t0:
                 raise ValueError("phases must be contiguous and in time order")
+            if a.early is not None and a.early is not b.swing and a.early is not b.early:
+                raise ValueError("an early swing goes on in the next phase until it lands")
 
 
 def torso_columns(character: Character, root_nv: int) -> list[int]:

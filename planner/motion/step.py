@@ -39,7 +39,7 @@ from planner.motion.sequence import (
     rest_to_rest,
     user_transitions,
 )
-from planner.motion.spec import MotionPhase, MotionSpec, Swing
+from planner.motion.spec import MotionPhase, MotionSpec, Swing, swing_length
 from planner.offline import OfflineData
 from planner.termination import Termination, never
 
@@ -85,12 +85,13 @@ class BuiltStep:
 def _swing_reach(
     character: Character, before: ContactState, after: ContactState, limb: str
 ) -> float:
-    """m, how far ``limb``'s effector moves from its pose in ``before`` to its pose in
-    ``after``."""
+    """m, how far ``limb``'s effector travels from its pose in ``before`` to its pose in
+    ``after`` (``spec.swing_length``)."""
     frame = character.limb(limb).effector_frame
     start = frame_placement(character.model, before.q, frame)[:3, 3]
     end = frame_placement(character.model, after.q, frame)[:3, 3]
-    return float(np.linalg.norm(end - start))
+    normals = [c.normal for c in (before.contact(limb), after.contact(limb)) if c is not None]
+    return swing_length(start, end, normals)
 
 
 def step_durations(

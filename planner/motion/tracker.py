@@ -83,8 +83,9 @@ class StepTargets:
     resort lets a swing that cannot land otherwise through: the checker still counts it).
     level_trunk : the trunk aims at the posture's yaw only (and its pitch for a character
     whose trunk may pitch); otherwise at the posture's own roll and pitch.
-    carried : (limb, pose (4, 4)) effectors carried through a flight (swing cost, guarded
-    like a swing). exact_com : a flight: the COM moves to ``com`` as an equality of the QP
+    carried : (limb, pose (4, 4)) effectors carried through a flight, or swinging ahead of
+    their landing phase (an overlapping swing, ``MotionPhase.early``): swing cost, guarded
+    like a swing. exact_com : a flight: the COM moves to ``com`` as an equality of the QP
     (``StepQP.com_move``) and the whole body is translated onto it after the step (the
     linearisation's residue).
     com_reach : m, the COM target is pulled in to this distance from the COM

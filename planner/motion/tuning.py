@@ -363,6 +363,21 @@ SWING_SPEED = 0.8
 """m/s, mean effector speed from lift-off to touch-down: a long reach gets more than
 MIN_SWING_S."""
 
+SWING_RISE_FREE = 0.1
+"""m of a swing's rise along its contact normal that its timing does not count again
+(``spec.swing_length``): a step onto a rock or a kerb."""
+
+SWING_RISE_WEIGHT = 3.0
+"""Extra weight of a swing's rise along its contact normal beyond ``SWING_RISE_FREE`` in the
+length that times it (``spec.swing_length``). At the straight distance alone, Talos stepping
+two treads of the stair_bauzil flight at once (0.54 m on, 0.3 m up) got 0.39 s: its arc met
+the tread between, and its foot, held back by its joints' speed limits, landed 25 cm short on
+every seed (the plan then re-planned: 0.49 s of computation per animation second, now 0.27).
+Counted from the first millimetre at weight 2 instead, the quadruped's steps onto the rubble's
+rocks got slower too and 2 of 3 seeds no longer played clean (a shin into a rock); counted
+for steps down as well, the humanoid going down the stairs flung its free arms at 90 rad/s^2
+(the tracker's acceleration bound yielding in 12 control steps)."""
+
 MIN_SHIFT_S = 0.15
 """s, shortest phase of a plan without a swing (the weight shifts between supports)."""
 
@@ -435,6 +450,51 @@ keyframes plus the failing windows."""
 DYNAMIC_BUILDS_PER_PHASE = 0.15
 """Trial builds per phase of a long plan: the humanoid's climbing wall (127 phases) met an
 unclean phase every 2 to 11 phases at brisk durations."""
+
+# --- overlapping swings (planner.motion.overlap) ---------------------------------------------
+OVERLAP_LEAD_S = 0.05
+"""s the first leg of an overlapped pair swings alone before the second lifts, and the second
+alone after the first has landed (one contact change per phase, each in the air at least
+one 30 Hz keyframe's worth)."""
+
+OVERLAP_SHIFT_S = 0.05
+"""s, the weight shift on every leg before an overlapped pair (``DYNAMIC_SHIFT_S`` elsewhere)."""
+
+OVERLAP_PACES = (0.55, 0.6, 0.75)
+"""Factors on the brisk durations of a plan with overlapped swings, tried in turn until the
+dynamic COM QP finds a curve and its trial build comes clean (``DYNAMIC_SLOWDOWNS``
+elsewhere). Measured on the quadruped's 1.5 m flat walk: no curve at 0.5; 0.537 m/s at 0.55,
+0.49 at 0.6, 0.39 at 0.75 (one leg at a time: 0.25), every figure of the audit clean."""
+
+OVERLAP_MIN_PERIODS = 1.2
+"""Keyframe periods each phase of a plan with overlapped swings lasts at least, so that every
+phase has a keyframe (the grid's spacing is within a fifth of a period of it once a plan has
+three keyframes): at 0.55 times the brisk durations a lead of 0.05 s lasts 0.028 s, less
+than a 30 Hz period, and the audit found 14 % of the quadruped walk's phases without one."""
+
+OVERLAP_COM_REACH = 0.12
+"""m: a pair of swings is overlapped only where the contacts left while both legs are in the
+air pass this close (horizontally) to the COM of the statically balanced states on either
+side (a quadruped's diagonal: 3 to 5 cm; its lateral pair, 24 cm, is not overlapped)."""
+
+OVERLAP_MIN_SHARE = 0.5
+"""Share of a plan's swings its overlapped pairs must hold for the plan to try them (the try
+is of the whole plan, and a failed one is paid for: HyQ's DARPA terrain, rough with level
+stretches, and the hexapod's climbing wall found a few level pairs, no clean curve with
+them, and 2.7 and 2.3 times the computation)."""
+
+OVERLAP_LEVEL = 0.03
+"""m: the contacts of an overlapped pair's states lie within this height of one another."""
+
+OVERLAP_MAX_NORMAL_TILT = math.radians(10.0)
+"""rad: and each faces up within this of the vertical (level ground)."""
+
+OVERLAP_ITERATIONS = 10
+"""Linearisation rounds of the dynamic COM QP of a plan with overlapped swings, without
+generator weight margin: on two diagonal point feet the contact wrench cone is flat (no
+torque about the line between them), so a margin on every generator leaves no curve and
+the torque's linearisation settles in 5 rounds on the quadruped's flat walk (the default 4
+leaves it invalid). The exact check of Eq. 1 at every collocation time still decides."""
 
 MAX_ROOT_SPEED = 1.4
 """m/s, the fastest the root may move between two keyframes of a plan's dynamic motion or a

@@ -110,6 +110,7 @@ async def test_seed_is_drawn_and_echoed(client: httpx.AsyncClient) -> None:
         ({"options": {"speed": 4}}, "options.speed"),
         ({"options": {"transition_cost": "silly"}}, "options.transition_cost"),
         ({"options": {"cost_strength": 3}}, "options.cost_strength"),
+        ({"options": {"overlap_swings": "sometimes"}}, "options.overlap_swings"),
         ({"options": {"attractors": [{"transition": -1, "point": [0, 0, 1]}]}}, "options.attr"),
         ({"options": {"attractors": [{"transition": 0, "point": [0, 1]}]}}, "options.attr"),
         ({"options": {"attractors": [{"transition": 0, "point": [0, 0, 1]}] * 65}}, "options.attr"),
@@ -122,6 +123,33 @@ async def test_bad_requests_name_the_field(
     assert response.status_code == 422, response.text
     error = response.json()["error"]
     assert error["field"].startswith(field)
+
+
+async def test_a_quadruped_overlaps_its_swings_unless_asked_not_to(
+    client: httpx.AsyncClient,
+) -> None:
+    walk = {**WALK, "character": "quadruped", "goal": {"stand_at": [1.5, 0.0, 0.0]}}
+    answers = {}
+    for overlap in (True, False):
+        request = {**walk, "options": {"overlap_swings": overlap}}
+        response = await client.post("/v1/plans", json=request, timeout=120)
+        assert response.status_code == 200, response.text
+        answers[overlap] = body = response.json()
+        assert body["status"] == "SOLVED"
+        assert len(body["phases"]) == len(body["states"])
+        for a, b in zip(body["phases"], body["phases"][1:], strict=False):
+            limbs_a = {c["limb"] for c in a["contacts"]}
+            limbs_b = {c["limb"] for c in b["contacts"]}
+            assert len(limbs_a ^ limbs_b) == 1, "one contact change per phase"
+        # the states are the balanced ones planned, the same either way
+        assert [len(s["contacts"]) for s in body["states"]].count(2) == 0
+    overlapped, alone = answers[True], answers[False]
+    assert overlapped["states"] == alone["states"]
+    assert overlapped["report"]["overlapped_swings"] > 0
+    assert alone["report"]["overlapped_swings"] == 0
+    assert min(len(p["contacts"]) for p in overlapped["phases"]) == 2  # diagonal legs up
+    assert min(len(p["contacts"]) for p in alone["phases"]) == 3
+    assert overlapped["keyframes"][-1]["t"] < 0.8 * alone["keyframes"][-1]["t"]
 
 
 @pytest.mark.parametrize(("key", "value"), [("character", "nobody"), ("scene", "nowhere")])
