@@ -704,6 +704,12 @@ def sequence_motion(
     remaining phases keep their COM curve but get no keyframes; the report says how many
     phases were animated.
 
+    A walker on four legs or more first tries its swings overlapped where ``timing.overlap``
+    and the ground allow (:func:`planner.motion.overlap.overlap_swings`): the dynamic curve
+    through the overlapped states at each of ``OVERLAP_PACES`` in turn, kept with the first
+    trial build that comes clean (the answer's ``states`` stay the ones given, its phases
+    hold the overlapped ones); otherwise the swings go one at a time as follows.
+
     Where a phase cannot be played cleanly even slowed and stopping at rest, ``replan``
     (when given) is asked for other contact changes from there on (2PAC 7.2's last
     resort): the dynamic curve is found again from the first changed phase, joined C2 to
