@@ -21,7 +21,8 @@ contacts of its limb), frames with a still COM, dynamic validity (Eq. 1: mean fr
 valid samples per phase, and the share of phases valid throughout) beside 2PAC's Table 3
 where the paper has the kind of scene, contact changes per plan (median), seconds of
 computation per contact change (whole pipeline, median), and on flat ground how far the
-keyframe COM rises and falls (bob: its height range over the plan, mm, median).
+keyframe COM rises and falls (bob: its height range over the plan, mm, median), and the
+pairs of swings overlapped (ovl, median; ``planner.motion.overlap``).
 """
 
 from __future__ import annotations
@@ -95,6 +96,7 @@ class Tally:
     per_change: list[float] = field(default_factory=list)
     validity: list[float] = field(default_factory=list)
     bob: list[float] = field(default_factory=list)
+    overlapped: list[int] = field(default_factory=list)
 
     def add(self, audit: MotionAudit) -> None:
         self.frames += audit.frames
@@ -163,7 +165,7 @@ HEADER = (
 PAPER_VALIDITY = {"stair": "97 %", "climbing": "56 %", "slope": "85 %", "chair": "100 %"}
 PACE_HEADER = (
     f"{'scenario':32s} {'pace':>6s} {'stride':>6s} {'still':>6s} {'valid':>6s} "
-    f"{'whole':>6s} {'paper':>6s} {'chg':>5s} {'s/chg':>6s} {'bob mm':>6s}"
+    f"{'whole':>6s} {'paper':>6s} {'chg':>5s} {'s/chg':>6s} {'bob mm':>6s} {'ovl':>4s}"
 )
 
 
@@ -196,7 +198,8 @@ def _pace_row(name: str, tally: Tally) -> str:
     return (
         f"{name:32s} {med(tally.pace, '.3f'):>6s} {med(tally.strides, '.2f'):>6s} {still:>6s} "
         f"{valid:>6s} {whole:>6s} {paper:>6s} {med(tally.changes, '.0f'):>5s} "
-        f"{med(tally.per_change, '.3f'):>6s} {med([1e3 * b for b in tally.bob], '.0f'):>6s}"
+        f"{med(tally.per_change, '.3f'):>6s} {med([1e3 * b for b in tally.bob], '.0f'):>6s} "
+        f"{med(tally.overlapped, '.0f'):>4s}"
     )
 
 
@@ -258,6 +261,7 @@ def bench_plans(
                 tally.strides.extend(_strides(plan.states))
             if motion is None or not motion.keyframes:
                 continue
+            tally.overlapped.append(int(motion.report.get("overlapped_swings", 0)))
             report = motion.report.get("dynamic_validity", [])
             tally.validity.extend(float(r["fraction_valid"]) for r in report)
             duration = _duration(motion.keyframes)
