@@ -463,8 +463,10 @@ OVERLAP_SHIFT_S = 0.05
 OVERLAP_PACES = (0.55, 0.6, 0.75)
 """Factors on the brisk durations of a plan with overlapped swings, tried in turn until the
 dynamic COM QP finds a curve and its trial build comes clean (``DYNAMIC_SLOWDOWNS``
-elsewhere). Measured on the quadruped's 1.5 m flat walk: no curve at 0.5; 0.537 m/s at 0.55,
-0.49 at 0.6, 0.39 at 0.75 (one leg at a time: 0.25), every figure of the audit clean."""
+elsewhere). Measured on the quadruped's 1.5 m flat walk (phases at least
+``OVERLAP_MIN_PERIODS``): 0.56 m/s at 0.5, 0.52 at 0.55, 0.49 at 0.6, 0.42 at 0.75 (one leg
+at a time: 0.25), every figure of the audit clean at each; its legs' joints already reach the
+10 rad/s cap while they swing at 0.55, which is tried first."""
 
 OVERLAP_MIN_PERIODS = 1.2
 """Keyframe periods each phase of a plan with overlapped swings lasts at least, so that every
