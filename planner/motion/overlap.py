@@ -113,13 +113,13 @@ def overlap_swings(character: Character, states: Sequence[ContactState]) -> Over
         ):
             i += 1
             continue
-        both = states[i + 1].without(b)
+        both = states[i + 1].without(b)  # at least two contacts: four held, two up
         support = np.array([p[:2] for c in both.contacts for p in c.points])
         reach = max(
             _support_distance(support, com_position(character.model, states[j].q)[:2])
             for j in (i + 1, i + 3)
         )
-        if len(both.contacts) < 2 or reach > tuning.OVERLAP_COM_REACH:
+        if reach > tuning.OVERLAP_COM_REACH:
             i += 1
             continue
         out[i + 2] = both
