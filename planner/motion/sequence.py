@@ -1035,6 +1035,8 @@ def sequence_motion(
         "transition_slack": [float(t.slack) for t in com_trajectory.transitions],
         "phase_methods": list(methods),
         "overlapped_swings": 0 if overlapped is None else len(overlapped.pairs),
+        # the phases with both legs of a pair up (their contacts are not their states')
+        "overlapped_phases": [] if overlapped is None else [k + 1 for k in overlapped.pairs],
         "speed": speed,
         "transition_cost": timing.cost.kind,
         "attractors": attractor_report,

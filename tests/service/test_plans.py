@@ -147,6 +147,9 @@ async def test_a_quadruped_overlaps_its_swings_unless_asked_not_to(
     assert overlapped["states"] == alone["states"]
     assert overlapped["report"]["overlapped_swings"] > 0
     assert alone["report"]["overlapped_swings"] == 0
+    for body in (overlapped, alone):
+        both_up = [k for k, p in enumerate(body["phases"]) if len(p["contacts"]) == 2]
+        assert body["report"]["overlapped_phases"] == both_up
     assert min(len(p["contacts"]) for p in overlapped["phases"]) == 2  # diagonal legs up
     assert min(len(p["contacts"]) for p in alone["phases"]) == 3
     assert overlapped["keyframes"][-1]["t"] < 0.8 * alone["keyframes"][-1]["t"]

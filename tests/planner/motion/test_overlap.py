@@ -81,6 +81,8 @@ def test_an_overlapped_walk_has_two_legs_in_the_air_at_once() -> None:
     motion = _motion(overlap=True)
     assert motion.report["overlapped_swings"] > 0
     assert motion.quality.complete
+    both_up = [k for k, p in enumerate(motion.phases) if len(p.contacts) == 2]
+    assert motion.report["overlapped_phases"] == both_up
     assert motion.states == _states("quadruped")  # the balanced states, as planned
     assert len(motion.phases) == len(motion.states)
     for a, b in zip(motion.phases, motion.phases[1:], strict=False):
