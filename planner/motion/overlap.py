@@ -125,12 +125,7 @@ def overlap_swings(character: Character, states: Sequence[ContactState]) -> Over
         out[i + 2] = both
         pairs.append(i + 1)
         i += 4
-    swings = sum(1 for a, b in itertools.pairwise(states) if _made(a, b))
+    swings = sum(1 for a, b in itertools.pairwise(states) if set(b.limbs) - set(a.limbs))
     if not pairs or 2 * len(pairs) < tuning.OVERLAP_MIN_SHARE * swings:
         return None
     return Overlap(tuple(out), tuple(pairs))
-
-
-def _made(before: ContactState, after: ContactState) -> bool:
-    """Whether ``after`` puts a limb down that ``before`` does not hold."""
-    return bool(set(after.limbs) - set(before.limbs))

@@ -39,7 +39,7 @@ from planner.offline import OfflineData
 from planner.termination import Termination, never
 
 if TYPE_CHECKING:  # annotations only: planner.contact imports planner.motion
-    from planner.contact.state import ContactState
+    from planner.contact.state import ContactState, LimbContact
 
 FloatArray = NDArray[np.float64]
 _QUINTIC_PEAK = 10.0 / np.sqrt(3.0)  # peak |c''| T^2 / L of the rest-to-rest quintic
@@ -229,14 +229,18 @@ def _swinging_limb(states: Sequence[ContactState], k: int) -> str | None:
     return next(iter(created)) if created else None
 
 
+def _last_contact(states: Sequence[ContactState], k: int, limb: str) -> LimbContact | None:
+    """``limb``'s last contact up to state k, None if it held none."""
+    return next((c for s in reversed(states[: k + 1]) if (c := s.contact(limb))), None)
+
+
 def _last_placement(
     character: Character, states: Sequence[ContactState], k: int, limb: str, q: FloatArray
 ) -> FloatArray:
     """Where ``limb`` was last in contact up to state k, else where ``q`` puts it."""
-    for state in reversed(states[: k + 1]):
-        contact = state.contact(limb)
-        if contact is not None:
-            return np.asarray(contact.placement)
+    contact = _last_contact(states, k, limb)
+    if contact is not None:
+        return np.asarray(contact.placement)
     return frame_placement(character.model, q, character.limb(limb).effector_frame)
 
 
@@ -246,12 +250,11 @@ def _swing_length(character: Character, states: Sequence[ContactState], k: int, 
     one before."""
     target = states[k + 1].contact(limb)
     assert target is not None
-    start = _last_placement(character, states, k, limb, states[k].q)
-    normals = [target.normal]
-    last = next((c for s in reversed(states[: k + 1]) if (c := s.contact(limb))), None)
-    if last is not None:
-        normals.append(last.normal)
-    return swing_length(start[:3, 3], target.placement[:3, 3], normals)
+    last = _last_contact(states, k, limb)
+    if last is None:  # never held: where the state's configuration puts it
+        start = _last_placement(character, states, k, limb, states[k].q)
+        return swing_length(start[:3, 3], target.position, [target.normal])
+    return swing_length(last.position, target.position, [target.normal, last.normal])
 
 
 def user_transitions(
@@ -486,17 +489,16 @@ def _overlapped_com(
     data: OfflineData,
     overlap: Overlap,
     reference: trajectory.ComTrajectory,
-    speed: float,
+    durations: Sequence[float],
     factor: float,
     rate: float,
 ) -> trajectory.DynamicCom | None:
     """The dynamic COM QP through the states of ``overlap`` (at rest at both ends), phases
-    lasting :func:`dynamic_durations` with its pairs times ``factor``, and at least
-    ``OVERLAP_MIN_PERIODS`` keyframe periods at ``rate`` (1/s), near 2PAC's ``reference``
-    curve through the states first given (as many phases); None unless a curve passes Eq. 1
-    at every collocation time (``OVERLAP_ITERATIONS``, no margin)."""
+    lasting ``durations`` (s, :func:`dynamic_durations` with its pairs) times ``factor``, and
+    at least ``OVERLAP_MIN_PERIODS`` keyframe periods at ``rate`` (1/s), near 2PAC's
+    ``reference`` curve through the states first given (as many phases); None unless a
+    curve passes Eq. 1 at every collocation time (``OVERLAP_ITERATIONS``, no margin)."""
     states = overlap.states
-    durations = dynamic_durations(character, states, speed, overlap.pairs)
     shortest = tuning.OVERLAP_MIN_PERIODS / rate
     found = trajectory.dynamic_com(
         [contact_phase(character, s) for s in states],
@@ -799,9 +801,14 @@ def sequence_motion(
     # its curve passes Eq. 1 and its one trial build comes clean, else the plan goes on
     # with its swings one at a time
     overlap = overlap_swings(character, states) if timing.overlap else None
+    brisk = (
+        []
+        if overlap is None
+        else dynamic_durations(character, overlap.states, speed, overlap.pairs)
+    )
     for factor in tuning.OVERLAP_PACES if overlap is not None else ():
         assert overlap is not None
-        overlap_com = _overlapped_com(character, data, overlap, com_trajectory, speed, factor, rate)
+        overlap_com = _overlapped_com(character, data, overlap, com_trajectory, brisk, factor, rate)
         if overlap_com is None:
             trials.append(f"overlapped swings at {factor:g}: no curve passes Eq. 1")
             continue
