@@ -193,11 +193,10 @@ def dynamic_com(
     durations_arr = np.diff(times)
     head = _join_points(before, float(durations_arr[0]), d, c0, at_end=False)
     tail = _join_points(after, float(durations_arr[-1]), d, c1, at_end=True)
-    eq_rows, eq_rhs, in_rows, in_rhs = _fixed_rows(layout, times, head, tail, d, kins, boxes)
-    in_rhs = np.concatenate([in_rhs, np.full(layout.n - layout.n_curve, -settings.margin)])
-    # the rows before the weights' margins are on the curve alone (trust box, kinematics)
-    lazy = np.arange(in_rhs.size) < in_rhs.size - (layout.n - layout.n_curve)
-    working = ~lazy if settings.lazy_rows else np.ones_like(lazy)
+    eq_rows, eq_rhs = _fixed_rows(layout, times, head, tail, d)
+    margin_rows, margin_rhs = _margin_rows(layout, settings.margin)
+    curve_rows = _CurveRows(layout, d, kins, boxes)
+    working = np.full(curve_rows.size, not settings.lazy_rows)
     cost_p, cost_q = _cost(layout, times, basis, basis2, settings, targets)
     result: DynamicCom | None = None
     for iteration in range(1, settings.iterations + 1):
@@ -208,8 +207,9 @@ def dynamic_com(
             cost_q,
             sparse.vstack([eq_rows, w_rows]),
             np.concatenate([eq_rhs, w_rhs]),
-            in_rows,
-            in_rhs,
+            curve_rows,
+            margin_rows,
+            margin_rhs,
             working,
         )
         if x is None:
@@ -231,17 +231,10 @@ def dynamic_com(
 
 
 def _fixed_rows(
-    layout: _Layout,
-    times: FloatArray,
-    head: FloatArray,
-    tail: FloatArray,
-    d: int,
-    kins: Sequence[Halfspaces | None],
-    boxes: Sequence[FloatArray],
-) -> tuple[sparse.csr_matrix, FloatArray, sparse.csr_matrix, FloatArray]:
-    """Equalities (the first three control points ``head`` (3, 3), the last three ``tail``
-    (3, 3, last first), C0/C1/C2 joins) and inequalities (kinematics, then the weight margin
-    -beta <= -margin whose right-hand side the caller appends)."""
+    layout: _Layout, times: FloatArray, head: FloatArray, tail: FloatArray, d: int
+) -> tuple[sparse.csr_matrix, FloatArray]:
+    """Equalities: the first three control points ``head`` (3, 3), the last three ``tail``
+    (3, 3, last first), C0/C1/C2 joins."""
     rows: list[dict[int, float]] = []
     rhs: list[float] = []
     n_last = layout.n_phases - 1
@@ -273,53 +266,119 @@ def _fixed_rows(
                 }
             )
             rhs.append(0.0)
-    eq = _matrix(rows, layout.n)
-    # each phase's control points stay in a box around its reference (trust region);
-    # kinematics hold on the control points (the curve lies in their convex hull, so along
-    # the whole phase, a little conservative), keeping only the rows the box can reach;
-    # KINEMATIC_SLACK absorbs round-off of the states' own COMs on the boundary
-    # built directly in CSR form: rows in order, each row's columns increasing (a box row
-    # has one entry, a kinematic row the three coordinates of one control point), which is
-    # the matrix COO -> CSR made from the same entries (a long window has millions of rows)
-    data: list[FloatArray] = []
-    ci: list[NDArray[Any]] = []
-    counts: list[NDArray[Any]] = []  # entries per row
-    bounds: list[FloatArray] = []
-    per_phase = (d + 1) * 3
-    for j, kin in enumerate(kins):
-        low = np.min(boxes[j], axis=0) - TRUST_RADIUS
-        high = np.max(boxes[j], axis=0) + TRUST_RADIUS
-        cols = np.arange(layout.point(j, 0), layout.point(j, 0) + per_phase)
-        for sign in (1.0, -1.0):  # x <= high, -x <= -low
-            data.append(np.full(per_phase, sign))
-            ci.append(cols)
-            counts.append(np.ones(per_phase, dtype=np.int64))
-        bounds += [np.tile(high, d + 1), -np.tile(low, d + 1)]
-        if kin is None or kin.A.shape[0] == 0:
-            continue
-        centre, half = 0.5 * (low + high), 0.5 * (high - low)
-        reachable = kin.A @ centre + np.abs(kin.A) @ half > kin.b + KINEMATIC_SLACK
-        a_rows, b_rows = kin.A[reachable], kin.b[reachable]
-        k = a_rows.shape[0]
-        if k == 0:
-            continue
-        # the k rows for each control point in turn: (d + 1) k rows of 3 entries
-        data.append(np.tile(a_rows.ravel(), d + 1))
-        ci.append(np.repeat(cols.reshape(d + 1, 3), k, axis=0).ravel())
-        counts.append(np.full((d + 1) * k, 3, dtype=np.int64))
-        bounds += [b_rows + KINEMATIC_SLACK] * (d + 1)
-    margin = np.arange(layout.n_curve, layout.n)
-    data.append(-np.ones(margin.size))
-    ci.append(margin)
-    counts.append(np.ones(margin.size, dtype=np.int64))
-    per_row = np.concatenate(counts)
-    indptr = np.zeros(per_row.size + 1, dtype=np.int64)
-    np.cumsum(per_row, out=indptr[1:])
-    in_rows = sparse.csr_matrix(
-        (np.concatenate(data), np.concatenate(ci), indptr), shape=(per_row.size, layout.n)
+    return _matrix(rows, layout.n), np.asarray(rhs)
+
+
+def _margin_rows(layout: _Layout, margin: float) -> tuple[sparse.csr_matrix, FloatArray]:
+    """The weights' margins -beta <= -margin: one row per generator weight, in order."""
+    count = layout.n - layout.n_curve
+    rows = sparse.csr_matrix(
+        (
+            -np.ones(count),
+            np.arange(layout.n_curve, layout.n),
+            np.arange(count + 1, dtype=np.int64),
+        ),
+        shape=(count, layout.n),
     )
-    in_rhs = np.concatenate(bounds) if bounds else np.zeros(0)
-    return eq, np.asarray(rhs), in_rows, in_rhs
+    return rows, np.full(count, -margin)
+
+
+class _CurveRows:
+    """The inequality rows on the control points alone, phase by phase: the trust box (each
+    coordinate of each point x <= high, then -x <= -low), then the rows of the phase's
+    kinematic polytope that the box can reach, for each control point in turn. Kept
+    implicit: a long window has millions of them and few ever bind, so they are evaluated
+    on an answer (:meth:`excess`) and made into matrix rows only where asked (:meth:`rows`).
+
+    Each phase's control points stay in a box around its reference (trust region);
+    kinematics hold on the control points (the curve lies in their convex hull, so along
+    the whole phase, a little conservative); ``KINEMATIC_SLACK`` absorbs round-off of the
+    states' own COMs on the boundary."""
+
+    def __init__(
+        self,
+        layout: _Layout,
+        d: int,
+        kins: Sequence[Halfspaces | None],
+        boxes: Sequence[FloatArray],
+    ) -> None:
+        self.n = layout.n
+        self.points = d + 1
+        self.first: list[int] = []  # column of each phase's first control point
+        self.high: list[FloatArray] = []  # (3,) m per phase
+        self.low: list[FloatArray] = []
+        self.a: list[FloatArray] = []  # (k, 3) reachable kinematic rows per phase
+        self.b: list[FloatArray] = []  # (k,) their bounds, slack included
+        sizes = []
+        for j, kin in enumerate(kins):
+            low = np.min(boxes[j], axis=0) - TRUST_RADIUS
+            high = np.max(boxes[j], axis=0) + TRUST_RADIUS
+            a_rows, b_rows = np.zeros((0, 3)), np.zeros(0)
+            if kin is not None and kin.A.shape[0] > 0:
+                centre, half = 0.5 * (low + high), 0.5 * (high - low)
+                reachable = kin.A @ centre + np.abs(kin.A) @ half > kin.b + KINEMATIC_SLACK
+                a_rows, b_rows = kin.A[reachable], kin.b[reachable] + KINEMATIC_SLACK
+            self.first.append(layout.point(j, 0))
+            self.high.append(high)
+            self.low.append(low)
+            self.a.append(a_rows)
+            self.b.append(b_rows)
+            sizes.append(self.points * (6 + a_rows.shape[0]))
+        self.offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+
+    @property
+    def size(self) -> int:
+        """The number of rows."""
+        return int(self.offsets[-1])
+
+    def excess(self, x: FloatArray) -> FloatArray:
+        """(size,) each row's left side at ``x`` (n,) less its bound (> 0: broken)."""
+        out = np.empty(self.size)
+        per = self.points * 3
+        for j, first in enumerate(self.first):
+            ctrl = x[first : first + per].reshape(self.points, 3)
+            o = self.offsets[j]
+            out[o : o + per] = (ctrl - self.high[j]).ravel()
+            out[o + per : o + 2 * per] = (self.low[j] - ctrl).ravel()
+            out[o + 2 * per : self.offsets[j + 1]] = (ctrl @ self.a[j].T - self.b[j]).ravel()
+        return out
+
+    def rows(self, mask: BoolArray) -> tuple[sparse.csr_matrix, FloatArray]:
+        """The rows ``mask`` (size,) selects, in order, as a CSR matrix (canonical: each
+        row's columns increasing) and their bounds."""
+        data: list[FloatArray] = []
+        cols: list[NDArray[Any]] = []
+        counts: list[NDArray[Any]] = []
+        bounds: list[FloatArray] = []
+        per = self.points * 3
+        for j, first in enumerate(self.first):
+            local = np.flatnonzero(mask[self.offsets[j] : self.offsets[j + 1]])
+            if local.size == 0:
+                continue
+            box = local[local < 2 * per]
+            upper = box < per
+            data.append(np.where(upper, 1.0, -1.0))
+            cols.append(first + box % per)
+            counts.append(np.ones(box.size, dtype=np.int64))
+            axes = box % 3
+            bounds.append(np.where(upper, self.high[j][axes], -self.low[j][axes]))
+            kin = local[local >= 2 * per] - 2 * per
+            if kin.size:
+                k = self.a[j].shape[0]
+                point, row = kin // k, kin % k
+                data.append(self.a[j][row].ravel())
+                cols.append((first + 3 * point[:, None] + np.arange(3)).ravel())
+                counts.append(np.full(kin.size, 3, dtype=np.int64))
+                bounds.append(self.b[j][row])
+        if not data:
+            return sparse.csr_matrix((0, self.n)), np.zeros(0)
+        per_row = np.concatenate(counts)
+        indptr = np.zeros(per_row.size + 1, dtype=np.int64)
+        np.cumsum(per_row, out=indptr[1:])
+        matrix = sparse.csr_matrix(
+            (np.concatenate(data), np.concatenate(cols), indptr), shape=(per_row.size, self.n)
+        )
+        return matrix, np.concatenate(bounds)
 
 
 def _join_points(
@@ -375,6 +434,18 @@ _SETTLED = frozenset(
 _ANSWERED = frozenset({clarabel.SolverStatus.Solved, clarabel.SolverStatus.AlmostSolved})
 """Clarabel's statuses whose answer is used: solved to ``SOLVER_TOLERANCE``, or to
 ``REDUCED_TOLERANCE`` when its progress stalled before."""
+
+STALLED_TOLERANCE = 1e-7
+"""Clarabel's dual residual and relative gap up to which the answer of a run that stalls
+short of ``REDUCED_TOLERANCE`` (InsufficientProgress, MaxIterations) is taken as it is, when
+its primal residual is within ``REDUCED_TOLERANCE``: without it the climbing wall's whole-plan
+QP (80,000 variables) stalled at a dual residual of 1.3e-8 and was run again refined, 1.5 s
+more, for control points 3e-6 m from the first run's and the same objective to 1e-13."""
+
+_STALLED = frozenset(
+    {clarabel.SolverStatus.InsufficientProgress, clarabel.SolverStatus.MaxIterations}
+)
+"""Clarabel's statuses of a run that stopped short of its tolerances without a certificate."""
 
 SOLVER_TOLERANCE = 1e-10
 """Clarabel's gap and feasibility tolerances (its default is 1e-8). At the default the answer
@@ -506,21 +577,24 @@ def _solve_lazy(
     q: FloatArray,
     a_eq: sparse.spmatrix,
     b_eq: FloatArray,
+    curve_rows: _CurveRows,
     a_in: sparse.csr_matrix,
     b_in: FloatArray,
     working: BoolArray,
 ) -> tuple[FloatArray | None, BoolArray]:
-    """:func:`_solve` with only the inequality rows ``working`` (k,) of ``a_in`` (k, n); when
-    its answer breaks another row by more than ``LAZY_ROW_TOLERANCE``, every row it comes
-    within ``LAZY_ROW_MARGIN`` of joins them and the QP is solved again. The answer is that of
-    the QP with every row (the rows left out are not binding at it), None when that QP is
-    infeasible (a QP with fewer rows is, or rows are added until it is). Returns (the answer
-    or None, the rows used, for the next solve)."""
+    """:func:`_solve` with the inequalities ``a_in`` x <= ``b_in`` and only the rows
+    ``working`` (size,) of ``curve_rows``; when its answer breaks another of those by more
+    than ``LAZY_ROW_TOLERANCE``, every one it comes within ``LAZY_ROW_MARGIN`` of joins them
+    and the QP is solved again. The answer is that of the QP with every row (the rows left
+    out are not binding at it), None when that QP is infeasible (a QP with fewer rows is,
+    or rows are added until it is). Returns (the answer or None, the rows used, for the
+    next solve)."""
     while True:
-        x = _solve(n, p, q, a_eq, b_eq, a_in[working], b_in[working])
+        rows, bounds = curve_rows.rows(working)
+        x = _solve(n, p, q, a_eq, b_eq, sparse.vstack([rows, a_in]), np.concatenate([bounds, b_in]))
         if x is None:
             return None, working
-        excess = a_in @ x - b_in
+        excess = curve_rows.excess(x)
         if not np.any(excess[~working] > LAZY_ROW_TOLERANCE):
             return x, working
         working = working | (excess > -LAZY_ROW_MARGIN)
@@ -536,9 +610,10 @@ def _solve(
     b_in: FloatArray,
 ) -> FloatArray | None:
     """min 0.5 x'Px + q'x s.t. a_eq x = b_eq, a_in x <= b_in; None unless solved (to
-    ``SOLVER_TOLERANCE``, or ``REDUCED_TOLERANCE`` where progress stalls before). Solved
-    without refining the KKT solves first (``SOLVER_REFINEMENT``), again with refinement
-    when that run ends neither solved nor with an infeasibility certificate."""
+    ``SOLVER_TOLERANCE``, or ``REDUCED_TOLERANCE`` where progress stalls before, or nearly:
+    :func:`_nearly_solved`). Solved without refining the KKT solves first
+    (``SOLVER_REFINEMENT``), again with refinement when that run ends neither solved nor
+    with an infeasibility certificate."""
     a = sparse.vstack([a_eq, a_in]).tocsc()
     b = np.concatenate([b_eq, b_in])
     cones = [clarabel.ZeroConeT(a_eq.shape[0]), clarabel.NonnegativeConeT(a_in.shape[0])]
@@ -550,12 +625,26 @@ def _solve(
         settings.reduced_tol_feas = REDUCED_TOLERANCE
         settings.iterative_refinement_enable = refine
         solution = clarabel.DefaultSolver(p, q, a, b, cones, settings).solve()
-        if refine or solution.status in _SETTLED:
+        if refine or solution.status in _SETTLED or _nearly_solved(solution):
             break
-    if solution.status not in _ANSWERED:
+    if solution.status not in _ANSWERED and not _nearly_solved(solution):
         return None
     x = np.asarray(solution.x, dtype=np.float64)
     return x if x.shape == (n,) and np.all(np.isfinite(x)) else None
+
+
+def _nearly_solved(solution: Any) -> bool:
+    """Whether a Clarabel run that stalled (InsufficientProgress, MaxIterations) stopped at
+    an answer feasible within ``REDUCED_TOLERANCE`` and optimal within ``STALLED_TOLERANCE``
+    (dual residual and gap relative to the objective)."""
+    if solution.status not in _STALLED:
+        return False
+    gap = abs(solution.obj_val - solution.obj_val_dual) / max(1.0, abs(solution.obj_val))
+    return bool(
+        solution.r_prim <= REDUCED_TOLERANCE
+        and solution.r_dual <= STALLED_TOLERANCE
+        and gap <= STALLED_TOLERANCE
+    )
 
 
 def _curve(layout: _Layout, x: FloatArray, times: FloatArray, d: int) -> PiecewiseBezier:

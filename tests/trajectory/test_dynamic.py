@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy import sparse
 
 import trajectory
 from tests.trajectory.helpers import figure2_phases, walking_phases
@@ -230,8 +231,13 @@ def test_rows_left_out_until_needed_give_the_answer_of_the_qp_with_every_row(
     assert lazy is not None and lazy.valid and every is not None
     n_curve = 5 * (trajectory.DynamicSettings().degree + 1) * 3
     added = 0
-    for (n, p, q, a_eq, b_eq, a_in, b_in, working), x, used in solves:
+    for (n, p, q, a_eq, b_eq, curve_rows, margins, margin_rhs, working), x, used in solves:
         assert x is not None
+        every_row = np.ones(curve_rows.size, dtype=bool)
+        rows, bounds = curve_rows.rows(every_row)
+        a_in = sparse.vstack([rows, margins])
+        b_in = np.concatenate([bounds, margin_rhs])
+        np.testing.assert_allclose(curve_rows.excess(x), rows @ x - bounds, atol=1e-12)
         np.testing.assert_allclose(a_eq @ x, b_eq, atol=1e-6)
         assert float(np.max(a_in @ x - b_in)) <= 1e-6
         whole = trajectory.dynamic._solve(n, p, q, a_eq, b_eq, a_in, b_in)
@@ -270,9 +276,11 @@ def test_a_run_without_refinement_that_does_not_settle_is_run_again_refined(
     real = clarabel.DefaultSolver
     runs: list[bool] = []
 
-    class Unsettled:
+    class Unsettled:  # stopped far from an answer
         status = clarabel.SolverStatus.MaxIterations
         x = ()
+        r_prim = r_dual = 1e-3
+        obj_val, obj_val_dual = 1.0, 2.0
 
     class Solver:
         def __init__(self, *args: Any) -> None:
@@ -337,24 +345,27 @@ def test_a_run_that_stalls_within_the_reduced_tolerance_is_taken_without_a_refin
         np.testing.assert_array_equal(a.control_points, b.control_points)
 
 
-def test_the_inequality_rows_are_the_box_kinematic_and_margin_rows_in_order() -> None:
-    """``_fixed_rows``'s inequalities (built directly in CSR form) row by row: per phase the
-    trust box (x <= high, then -x <= -low), then each control point's reachable kinematic
-    rows, then the weights' margins; canonical (sorted columns, no duplicates)."""
+def test_the_curve_rows_are_the_box_then_the_kinematic_rows_in_order() -> None:
+    """``_CurveRows`` row by row: per phase the trust box (x <= high, then -x <= -low), then
+    each control point's reachable kinematic rows; any selection of them is those rows in
+    order (canonical CSR: sorted columns, no duplicates), and ``excess`` is each row's
+    left side less its bound. The weights' margins are -beta <= -margin, one per weight."""
     from trajectory import dynamic
 
-    phases, _, start, end = _walk(3, 0.6, 0.4)
+    phases, _, start, _ = _walk(3, 0.6, 0.4)
     d, samples = 5, 4
     layout = dynamic._Layout(phases, d, samples)
-    times = np.array([0.0, 0.4, 1.0, 1.4])
     rng = np.random.default_rng(2)
     normals = rng.normal(size=(6, 3))
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-    kin = Halfspaces(normals, normals @ start + 0.05)
+    # six rows near the start, three out of the trust box's reach
+    far = -normals[:3]
+    kin = Halfspaces(
+        np.vstack([normals, far]), np.concatenate([normals @ start + 0.05, far @ start + 2.0])
+    )
     kins = [kin, None, kin]
     boxes = [start + rng.normal(0.0, 0.05, (samples, 3)) for _ in phases]
-    head, tail = np.tile(start, (3, 1)), np.tile(end, (3, 1))
-    _, _, rows, rhs = dynamic._fixed_rows(layout, times, head, tail, d, kins, boxes)
+    curve_rows = dynamic._CurveRows(layout, d, kins, boxes)
     expected: list[np.ndarray] = []
     bounds: list[float] = []
     for j, kin_j in enumerate(kins):
@@ -371,17 +382,66 @@ def test_the_inequality_rows_are_the_box_kinematic_and_margin_rows_in_order() ->
             continue
         centre, half = 0.5 * (low + high), 0.5 * (high - low)
         keep = kin_j.A @ centre + np.abs(kin_j.A) @ half > kin_j.b + dynamic.KINEMATIC_SLACK
+        assert 0 < keep.sum() < keep.size  # some rows out of the box's reach, some not
         for i in range(d + 1):
             for a, b in zip(kin_j.A[keep], kin_j.b[keep], strict=True):
                 row = np.zeros(layout.n)
                 row[layout.point(j, i) : layout.point(j, i) + 3] = a
                 expected.append(row)
                 bounds.append(float(b + dynamic.KINEMATIC_SLACK))
-    for col in range(layout.n_curve, layout.n):
-        row = np.zeros(layout.n)
-        row[col] = -1.0
-        expected.append(row)
-    assert rows.shape == (len(expected), layout.n)
-    assert np.array_equal(rows.toarray(), np.array(expected))
-    assert np.array_equal(rhs, np.array(bounds))
-    assert rows.has_canonical_format
+    whole, whole_b = np.array(expected), np.array(bounds)
+    assert curve_rows.size == len(expected)
+    x = rng.normal(size=layout.n)
+    np.testing.assert_allclose(curve_rows.excess(x), whole @ x - whole_b, atol=1e-12)
+    for mask in (
+        np.ones(curve_rows.size, dtype=bool),
+        rng.random(curve_rows.size) < 0.3,
+        np.zeros(curve_rows.size, dtype=bool),
+    ):
+        rows, rhs = curve_rows.rows(mask)
+        assert rows.shape == (int(mask.sum()), layout.n)
+        assert np.array_equal(rows.toarray(), whole[mask])
+        assert np.array_equal(rhs, whole_b[mask])
+        assert rows.has_canonical_format
+    margins, margin_rhs = dynamic._margin_rows(layout, 0.002)
+    weights = layout.n - layout.n_curve
+    assert np.array_equal(
+        margins.toarray(), -np.eye(layout.n)[layout.n_curve :]
+    ) and np.array_equal(margin_rhs, np.full(weights, -0.002))
+
+
+@pytest.mark.parametrize(("dual", "taken"), [(5e-8, True), (5e-7, False)])
+def test_a_run_that_stalls_near_the_answer_is_taken_only_within_the_stalled_tolerance(
+    monkeypatch: pytest.MonkeyPatch, dual: float, taken: bool
+) -> None:
+    """Clarabel's unrefined run stalling (InsufficientProgress) feasible to
+    ``REDUCED_TOLERANCE``: its answer is taken with no refined run when its dual residual is
+    within ``STALLED_TOLERANCE`` (5e-8 <= 1e-7), else the QP is solved again refined."""
+    phases, durations, start, end = _walk(3, 0.4, 0.15)
+    clarabel = trajectory.dynamic.clarabel
+    real = clarabel.DefaultSolver
+    runs: list[bool] = []
+
+    class Stalled:
+        def __init__(self, solution: Any) -> None:
+            self.status = clarabel.SolverStatus.InsufficientProgress
+            self.x = solution.x
+            self.obj_val, self.obj_val_dual = solution.obj_val, solution.obj_val_dual
+            self.r_prim, self.r_dual = 1e-9, dual
+
+    class Solver:
+        def __init__(self, *args: Any) -> None:
+            self.refine = bool(args[-1].iterative_refinement_enable)
+            self.solver = real(*args)
+
+        def solve(self) -> Any:
+            runs.append(self.refine)
+            solution = self.solver.solve()
+            return solution if self.refine else Stalled(solution)
+
+    monkeypatch.setattr(clarabel, "DefaultSolver", Solver)
+    stalled = trajectory.dynamic_com(phases, durations, start, end)
+    assert stalled is not None
+    assert (True in runs) is not taken
+    if taken:
+        assert len(runs) == stalled.iterations  # one run per linearisation round
