@@ -43,12 +43,16 @@ class Swing:
 def swing_length(start: FloatArray, end: FloatArray, normals: Sequence[FloatArray]) -> float:
     """m, how far an effector travels from ``start`` (3,) to ``end`` (3,) as a swing's timing
     counts it: the straight distance plus ``SWING_RISE_WEIGHT`` times its rise along the
-    contact ``normals`` (unit (3,), world frame: the largest) beyond ``SWING_RISE_FREE``. A
-    foot stepping up a flight of stairs must first clear the tread between; one stepping down
-    falls, and a hand moving along a wall does not rise off it."""
+    contact ``normals`` (unit (3,), world frame: the largest) beyond ``SWING_RISE_FREE``, and
+    ``SWING_DROP_WEIGHT`` times its drop (the largest) beyond ``SWING_DROP_FREE``. A foot
+    stepping up a flight of stairs must first clear the tread between; one stepping down
+    folds its knee to leave the tread and unfolds it to land; a hand moving along a wall
+    neither rises nor drops."""
     delta = np.asarray(end, dtype=np.float64) - np.asarray(start, dtype=np.float64)
     rise = max((float(delta @ np.asarray(n)) for n in normals), default=0.0)
     extra = tuning.SWING_RISE_WEIGHT * max(0.0, rise - tuning.SWING_RISE_FREE)
+    drop = -min((float(delta @ np.asarray(n)) for n in normals), default=0.0)
+    extra += tuning.SWING_DROP_WEIGHT * max(0.0, drop - tuning.SWING_DROP_FREE)
     return float(np.linalg.norm(delta)) + extra
 
 

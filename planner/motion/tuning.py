@@ -378,6 +378,20 @@ rocks got slower too and 2 of 3 seeds no longer played clean (a shin into a rock
 for steps down as well, the humanoid going down the stairs flung its free arms at 90 rad/s^2
 (the tracker's acceleration bound yielding in 12 control steps)."""
 
+SWING_DROP_FREE = 0.05
+"""m of a swing's drop (its landing below its start along a contact normal) that its timing
+does not count again (``spec.swing_length``)."""
+
+SWING_DROP_WEIGHT = 4.0
+"""Extra weight of a swing's drop beyond ``SWING_DROP_FREE`` in the length that times it. At
+the straight distance alone, the humanoid stepping 15 cm down each stair (0.3 m on) got
+0.225 s at the brisk pace: the foot, its knee at the 10 rad/s cap, landed 30 to 45 mm short
+at every arc height (0.08 to 0.24 m) and on the box-shaped path, every seed abandoned three
+trial builds and re-planned (0.37 s of computation per animation second). Weight 3 (0.3 m
+more for a stair) stops just short: three seeds of four slowed phase after phase into an
+APPROXIMATE 26 s plan; 3.5 to 6 give clean first trials on six seeds of six (0.13 to 0.18
+s per animation second)."""
+
 MIN_SHIFT_S = 0.15
 """s, shortest phase of a plan without a swing (the weight shifts between supports)."""
 
