@@ -3,6 +3,7 @@ kinematic constraints, and the same answer for the same input."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -266,21 +267,14 @@ def test_rows_left_out_still_make_an_infeasible_qp_infeasible() -> None:
         )
 
 
-def test_a_run_without_refinement_that_does_not_settle_is_run_again_refined(
-    monkeypatch: pytest.MonkeyPatch,
-) -> None:
-    """Clarabel's unrefined run ending at its iteration limit: the QP is solved again with
-    refinement, and the answer is the one a refined run gives."""
-    phases, durations, start, end = _walk(3, 0.4, 0.15)
-    clarabel = trajectory.dynamic.clarabel
-    real = clarabel.DefaultSolver
+def _unrefined_runs_replaced(
+    monkeypatch: pytest.MonkeyPatch, replaced: Callable[[Any], Any]
+) -> list[bool]:
+    """Clarabel's solver made to answer its unrefined runs with ``replaced(solution)`` (the
+    run's real solution in, a stand-in out); the list it returns records, run by run,
+    whether the run was refined."""
+    real = trajectory.dynamic.clarabel.DefaultSolver
     runs: list[bool] = []
-
-    class Unsettled:  # stopped far from an answer
-        status = clarabel.SolverStatus.MaxIterations
-        x = ()
-        r_prim = r_dual = 1e-3
-        obj_val, obj_val_dual = 1.0, 2.0
 
     class Solver:
         def __init__(self, *args: Any) -> None:
@@ -289,9 +283,28 @@ def test_a_run_without_refinement_that_does_not_settle_is_run_again_refined(
 
         def solve(self) -> Any:
             runs.append(self.refine)
-            return self.solver.solve() if self.refine else Unsettled()
+            solution = self.solver.solve()
+            return solution if self.refine else replaced(solution)
 
-    monkeypatch.setattr(clarabel, "DefaultSolver", Solver)
+    monkeypatch.setattr(trajectory.dynamic.clarabel, "DefaultSolver", Solver)
+    return runs
+
+
+def test_a_run_without_refinement_that_does_not_settle_is_run_again_refined(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Clarabel's unrefined run ending at its iteration limit: the QP is solved again with
+    refinement, and the answer is the one a refined run gives."""
+    phases, durations, start, end = _walk(3, 0.4, 0.15)
+    clarabel = trajectory.dynamic.clarabel
+
+    class Unsettled:  # stopped far from an answer
+        status = clarabel.SolverStatus.MaxIterations
+        x = ()
+        r_prim = r_dual = 1e-3
+        obj_val, obj_val_dual = 1.0, 2.0
+
+    runs = _unrefined_runs_replaced(monkeypatch, lambda solution: Unsettled())
     retried = trajectory.dynamic_com(phases, durations, start, end)
     monkeypatch.undo()
     monkeypatch.setattr(trajectory.dynamic, "SOLVER_REFINEMENT", True)
@@ -419,8 +432,6 @@ def test_a_run_that_stalls_near_the_answer_is_taken_only_within_the_stalled_tole
     within ``STALLED_TOLERANCE`` (5e-8 <= 1e-7), else the QP is solved again refined."""
     phases, durations, start, end = _walk(3, 0.4, 0.15)
     clarabel = trajectory.dynamic.clarabel
-    real = clarabel.DefaultSolver
-    runs: list[bool] = []
 
     class Stalled:
         def __init__(self, solution: Any) -> None:
@@ -429,17 +440,7 @@ def test_a_run_that_stalls_near_the_answer_is_taken_only_within_the_stalled_tole
             self.obj_val, self.obj_val_dual = solution.obj_val, solution.obj_val_dual
             self.r_prim, self.r_dual = 1e-9, dual
 
-    class Solver:
-        def __init__(self, *args: Any) -> None:
-            self.refine = bool(args[-1].iterative_refinement_enable)
-            self.solver = real(*args)
-
-        def solve(self) -> Any:
-            runs.append(self.refine)
-            solution = self.solver.solve()
-            return solution if self.refine else Stalled(solution)
-
-    monkeypatch.setattr(clarabel, "DefaultSolver", Solver)
+    runs = _unrefined_runs_replaced(monkeypatch, Stalled)
     stalled = trajectory.dynamic_com(phases, durations, start, end)
     assert stalled is not None
     assert (True in runs) is not taken
