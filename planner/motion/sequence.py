@@ -252,7 +252,8 @@ def _swing_length(character: Character, states: Sequence[ContactState], k: int, 
     assert target is not None
     last = _last_contact(states, k, limb)
     if last is None:  # never held: where the state's configuration puts it
-        start = _last_placement(character, states, k, limb, states[k].q)
+        frame = character.limb(limb).effector_frame
+        start = frame_placement(character.model, states[k].q, frame)
         return swing_length(start[:3, 3], target.position, [target.normal])
     return swing_length(last.position, target.position, [target.normal, last.normal])
 

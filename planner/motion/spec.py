@@ -49,9 +49,9 @@ def swing_length(start: FloatArray, end: FloatArray, normals: Sequence[FloatArra
     folds its knee to leave the tread and unfolds it to land; a hand moving along a wall
     neither rises nor drops."""
     delta = np.asarray(end, dtype=np.float64) - np.asarray(start, dtype=np.float64)
-    rise = max((float(delta @ np.asarray(n)) for n in normals), default=0.0)
+    along = [float(delta @ np.asarray(n)) for n in normals]  # signed: up, else down
+    rise, drop = max(along, default=0.0), -min(along, default=0.0)
     extra = tuning.SWING_RISE_WEIGHT * max(0.0, rise - tuning.SWING_RISE_FREE)
-    drop = -min((float(delta @ np.asarray(n)) for n in normals), default=0.0)
     extra += tuning.SWING_DROP_WEIGHT * max(0.0, drop - tuning.SWING_DROP_FREE)
     return float(np.linalg.norm(delta)) + extra
 
