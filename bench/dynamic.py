@@ -7,9 +7,10 @@ Plans each scenario once at its seed, recording the arguments of every ``dynamic
 call again, median of ``--repeat`` runs, two ways in the same run:
 
 - old: every inequality row in the QP from the start, Clarabel at its default tolerances
-  (1e-8) with iterative refinement (what ``dynamic_com`` did before ``lazy_rows``);
-- new: the module's defaults (rows on the curve alone added when needed, tolerances
-  ``SOLVER_TOLERANCE``, refinement ``SOLVER_REFINEMENT``).
+  (1e-8) with iterative refinement, 12 collocation times in every phase (what
+  ``dynamic_com`` did before ``lazy_rows`` and ``sample_spacing``);
+- new: as the plan calls it (rows on the curve alone added when needed, tolerances
+  ``SOLVER_TOLERANCE``, refinement ``SOLVER_REFINEMENT``, the plan's sample spacing).
 
 Prints per call the QP size, both medians, the speed-up and the largest difference between
 the control points of the two curves (m), then per plan the sum over its calls (the plan's
@@ -53,7 +54,8 @@ Call = tuple[tuple[Any, ...], dict[str, Any]]
 
 
 def record_calls(name: str) -> list[Call]:
-    """The arguments of every ``trajectory.dynamic_com`` call while planning ``name``."""
+    """The arguments of every ``trajectory.dynamic_com`` and ``solve_dynamic_com`` call while
+    planning ``name``."""
     spec = json.loads((PLANS / f"{name}.json").read_text())
     scene = scenario_scene(spec)
     if scene is None:
@@ -62,13 +64,18 @@ def record_calls(name: str) -> list[Call]:
     character = get_character(spec["character"])
     data = load_offline_data(character, gecko_cache_dir())
     calls: list[Call] = []
-    original = trajectory.dynamic_com
+    original, original_outcome = trajectory.dynamic_com, trajectory.solve_dynamic_com
 
     def recording(*args: Any, **kwargs: Any) -> trajectory.DynamicCom | None:
         calls.append((args, kwargs))
         return original(*args, **kwargs)
 
+    def recording_outcome(*args: Any, **kwargs: Any) -> trajectory.DynamicOutcome:
+        calls.append((args, kwargs))
+        return original_outcome(*args, **kwargs)
+
     trajectory.dynamic_com = recording  # type: ignore[assignment]
+    trajectory.solve_dynamic_com = recording_outcome  # type: ignore[assignment]
     try:
         plan_contact_motion(
             scene,
@@ -81,7 +88,7 @@ def record_calls(name: str) -> list[Call]:
             options=scenario_options(spec),
         )
     finally:
-        trajectory.dynamic_com = original
+        trajectory.dynamic_com, trajectory.solve_dynamic_com = original, original_outcome
     return calls
 
 
@@ -122,7 +129,7 @@ def bench_scenario(name: str, repeat: int) -> None:
     )
     for i, (args, kwargs) in enumerate(calls):
         base = kwargs.get("settings") or trajectory.DynamicSettings()
-        every_row = dataclasses.replace(base, lazy_rows=False)
+        every_row = dataclasses.replace(base, lazy_rows=False, sample_spacing=0.0)
 
         def run_old(
             a: tuple[Any, ...] = args, k: dict[str, Any] = kwargs, s: Any = every_row

@@ -17,7 +17,13 @@ from trajectory.com import (
     weierstrass_curve,
 )
 from trajectory.contacts import Contact, ContactPhase, friction_rays, tangent_basis
-from trajectory.dynamic import DynamicCom, DynamicSettings, dynamic_com
+from trajectory.dynamic import (
+    DynamicCom,
+    DynamicOutcome,
+    DynamicSettings,
+    dynamic_com,
+    solve_dynamic_com,
+)
 from trajectory.equilibrium import (
     EquilibriumMargin,
     equilibrium_halfspaces,
@@ -44,6 +50,7 @@ __all__ = [
     "Contact",
     "ContactPhase",
     "DynamicCom",
+    "DynamicOutcome",
     "DynamicSettings",
     "EffectorConstraint",
     "EquilibriumMargin",
@@ -68,6 +75,7 @@ __all__ = [
     "plan_com_trajectory",
     "polyline_parametrisation",
     "quasi_static_polyline",
+    "solve_dynamic_com",
     "stack",
     "tangent_basis",
     "to_world",

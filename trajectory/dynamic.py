@@ -21,6 +21,8 @@ the same optimum from a QP a few times smaller.
 
 from __future__ import annotations
 
+import itertools
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -43,6 +45,9 @@ class DynamicSettings:
 
     degree : Bezier degree of each phase's segment (>= 5: C2 joins and rest ends leave
         free points). samples : collocation times per phase, both ends included.
+    sample_spacing : s; when positive, a phase gets only as many samples as spacing them
+        this far apart takes (``MIN_PHASE_SAMPLES`` at least, ``samples`` at most), so that
+        a short phase is not sampled every few milliseconds.
     iterations : linearisation rounds at most. margin : smallest generator weight, in body
         weights, while solving (robustness to the linearisation and between samples).
     acceleration_weight : cost of the squared acceleration (s^4 per phase second).
@@ -59,6 +64,7 @@ class DynamicSettings:
 
     degree: int = 7
     samples: int = 12
+    sample_spacing: float = 0.0
     iterations: int = 4
     margin: float = 1e-3
     acceleration_weight: float = 1.0
@@ -74,6 +80,20 @@ class DynamicSettings:
             raise ValueError(f"samples: at least 2 are needed, got {self.samples}")
         if self.iterations < 1:
             raise ValueError(f"iterations: at least 1 is needed, got {self.iterations}")
+        if not self.sample_spacing >= 0.0:
+            raise ValueError(f"sample_spacing: at least 0 is needed, got {self.sample_spacing}")
+
+    def phase_samples(self, duration: float) -> int:
+        """Collocation times of a phase lasting ``duration`` s (``sample_spacing``)."""
+        if self.sample_spacing <= 0.0:
+            return self.samples
+        wanted = math.ceil(duration / self.sample_spacing - 1e-9) + 1
+        return max(min(MIN_PHASE_SAMPLES, self.samples), min(self.samples, wanted))
+
+
+MIN_PHASE_SAMPLES = 4
+"""Fewest collocation times of a phase under ``DynamicSettings.sample_spacing`` (both ends
+and two between)."""
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -106,20 +126,33 @@ def _skews(u: FloatArray) -> FloatArray:
     return out
 
 
+class _Basis:
+    """A phase's collocation fractions ``u`` (samples,) in [0, 1], the Bernstein basis of
+    its segment there ``basis`` (samples, d + 1) and of its second derivative ``basis2``
+    (samples, d + 1; to divide by the phase's duration squared)."""
+
+    def __init__(self, degree: int, samples: int) -> None:
+        self.u = np.linspace(0.0, 1.0, samples)
+        self.basis = bernstein(degree, self.u)
+        self.basis2 = (
+            bernstein(degree - 2, self.u) @ _second_difference(degree) * degree * (degree - 1)
+        )
+
+
 class _Layout:
     """Variable layout: control points of every phase (phase, point, xyz), then the
     generator weights of every collocation sample."""
 
-    def __init__(self, phases: Sequence[ContactPhase], degree: int, samples: int) -> None:
+    def __init__(self, phases: Sequence[ContactPhase], degree: int, samples: Sequence[int]) -> None:
         self.n_phases = len(phases)
         self.points = degree + 1
         self.n_curve = self.n_phases * self.points * 3
         self.weights_at: list[list[int]] = []
         offset = self.n_curve
-        for phase in phases:
+        for phase, count in zip(phases, samples, strict=True):
             m = phase.wrench_generators.shape[0]
             row = []
-            for _ in range(samples):
+            for _ in range(count):
                 row.append(offset)
                 offset += m
             self.weights_at.append(row)
@@ -128,6 +161,17 @@ class _Layout:
     def point(self, phase: int, index: int) -> int:
         """Index of the x coordinate of control point ``index`` of ``phase``."""
         return (phase * self.points + index) * 3
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class DynamicOutcome:
+    """What :func:`solve_dynamic_com` found: ``com`` as :func:`dynamic_com` returns it, and
+    where its QP was infeasible, ``blame`` (n,): each phase's share of the weight that
+    Clarabel's infeasibility certificate puts on its Eq. 1 rows (sums to 1; the phases
+    whose contacts cannot carry the curve asked of them), else None."""
+
+    com: DynamicCom | None
+    blame: FloatArray | None
 
 
 def dynamic_com(
@@ -143,14 +187,44 @@ def dynamic_com(
     before: BezierCurve | None = None,
     after: BezierCurve | None = None,
 ) -> DynamicCom | None:
+    """:func:`solve_dynamic_com`'s curve."""
+    return solve_dynamic_com(
+        phases,
+        durations,
+        start,
+        end,
+        kinematics=kinematics,
+        reference=reference,
+        reference_times=reference_times,
+        settings=settings,
+        before=before,
+        after=after,
+    ).com
+
+
+def solve_dynamic_com(
+    phases: Sequence[ContactPhase],
+    durations: Sequence[float],
+    start: FloatArray,
+    end: FloatArray,
+    *,
+    kinematics: Sequence[Halfspaces | None] | None = None,
+    reference: PiecewiseBezier | None = None,
+    reference_times: Sequence[float] | None = None,
+    settings: DynamicSettings | None = None,
+    before: BezierCurve | None = None,
+    after: BezierCurve | None = None,
+) -> DynamicOutcome:
     """A C2 COM from ``start`` to ``end`` (3,), at rest at both, phase j lasting
-    durations[j] s, whose wrench lies in phase j's contact cone at ``settings.samples``
-    times of the phase and whose position satisfies ``kinematics[j]`` there. The curve
-    stays near ``reference`` (or None), whose phase j spans reference_times[j] to
+    durations[j] s, whose wrench lies in phase j's contact cone at its collocation times
+    (``DynamicSettings.phase_samples``) and whose position satisfies ``kinematics[j]``
+    there. The curve stays near ``reference`` (or None), whose phase j spans
+    reference_times[j] to
     reference_times[j + 1] (n + 1 times, s; the reference is compared phase by phase at the
     same fractions of each phase). None when a
-    QP is infeasible; ``valid`` False when the linearisation did not settle into an exactly
-    valid curve within ``settings.iterations`` rounds. ``before`` / ``after`` : segments (of
+    QP is infeasible (the outcome's ``blame`` then says which phases); ``valid`` False when
+    the linearisation did not settle into an exactly valid curve within
+    ``settings.iterations`` rounds. ``before`` / ``after`` : segments (of
     the same degree) the curve joins C2 instead of starting / ending at rest: it starts where
     ``before`` ends (``start`` must be that point) and ends where ``after`` starts (``end``
     likewise); its times still start at 0 (a window of a longer curve, shifted by the
@@ -168,28 +242,37 @@ def dynamic_com(
     if len(kins) != len(phases):
         raise ValueError("kinematics: one entry per phase is needed")
     d = settings.degree
-    layout = _Layout(phases, d, settings.samples)
-    u = np.linspace(0.0, 1.0, settings.samples)
-    basis = bernstein(d, u)  # (samples, d + 1)
-    basis2 = bernstein(d - 2, u) @ _second_difference(d) * d * (d - 1)
+    # the cost and trust boxes at ``samples`` per phase, Eq. 1 at each phase's own count
+    full = _Basis(d, settings.samples)
+    counts = [settings.phase_samples(float(t)) for t in np.diff(times)]
+    layout = _Layout(phases, d, counts)
+    bases = {count: _Basis(d, count) for count in {settings.samples, *counts}}
+    per_phase_basis = [bases[count] for count in counts]
+    ends = np.cumsum([0, *counts])
+    per_phase = [slice(int(a), int(b)) for a, b in itertools.pairwise(ends)]
+    all_times = np.concatenate(
+        [times[j] + b.u * (times[j + 1] - times[j]) for j, b in enumerate(per_phase_basis)]
+    )
 
-    sample_times = [times[j] + u * (times[j + 1] - times[j]) for j in range(len(phases))]
-    all_times = np.concatenate(sample_times)
-    per_phase = [slice(j * u.size, (j + 1) * u.size) for j in range(len(phases))]
-    targets: list[FloatArray] | None = None
+    def guess(j: int, u: FloatArray) -> FloatArray:
+        """(len(u), 3) the reference (else the line from start to end) at fractions u of
+        phase j."""
+        if reference is None:
+            fractions = (times[j] + u * (times[j + 1] - times[j])) / times[-1]
+            return np.asarray(c0 + fractions[:, None] * (c1 - c0))
+        at = np.clip(rt[j] + u * (rt[j + 1] - rt[j]), reference.t0, reference.t1)
+        return np.asarray(reference(at))
+
     if reference is not None:
         if reference_times is None or len(reference_times) != len(phases) + 1:
             raise ValueError("reference_times: one time per phase boundary is needed")
         rt = np.asarray(reference_times, dtype=np.float64)
-        targets = [
-            reference(np.clip(rt[j] + u * (rt[j + 1] - rt[j]), reference.t0, reference.t1))
-            for j in range(len(phases))
-        ]
-        lin = [(t, np.zeros_like(t)) for t in targets]
-    else:
-        line = [c0 + (ts / times[-1])[:, None] * (c1 - c0) for ts in sample_times]
-        lin = [(t, np.zeros_like(t)) for t in line]
-    boxes = [c for c, _ in lin]
+    boxes = [guess(j, full.u) for j in range(len(phases))]
+    targets = None if reference is None else boxes
+    lin = [
+        (boxes[j] if counts[j] == full.u.size else guess(j, b.u), np.zeros((counts[j], 3)))
+        for j, b in enumerate(per_phase_basis)
+    ]
     durations_arr = np.diff(times)
     head = _join_points(before, float(durations_arr[0]), d, c0, at_end=False)
     tail = _join_points(after, float(durations_arr[-1]), d, c1, at_end=True)
@@ -197,11 +280,11 @@ def dynamic_com(
     margin_rows, margin_rhs = _margin_rows(layout, settings.margin)
     curve_rows = _CurveRows(layout, d, kins, boxes)
     working = np.full(curve_rows.size, not settings.lazy_rows)
-    cost_p, cost_q = _cost(layout, times, basis, basis2, settings, targets)
+    cost_p, cost_q = _cost(layout, times, full, settings, targets)
     result: DynamicCom | None = None
     for iteration in range(1, settings.iterations + 1):
-        w_rows, w_rhs = _wrench_rows(layout, phases, times, basis, basis2, lin)
-        x, working = _solve_lazy(
+        w_rows, w_rhs = _wrench_rows(layout, phases, times, per_phase_basis, lin)
+        x, working, certificate = _solve_lazy(
             layout.n,
             cost_p,
             cost_q,
@@ -213,7 +296,13 @@ def dynamic_com(
             working,
         )
         if x is None:
-            return result
+            blame = None
+            if certificate is not None:  # its rows: the fixed rows, then Eq. 1's, phase by phase
+                weight = np.abs(certificate[eq_rhs.size : eq_rhs.size + w_rhs.size])
+                weight = np.add.reduceat(weight, 6 * ends[:-1])
+                total = float(weight.sum())
+                blame = weight / total if total > 0.0 else None
+            return DynamicOutcome(result, blame)
         curve = _curve(layout, x, times, d)
         # every phase's samples in one evaluation of each curve (the same points as phase
         # by phase: a sample on a break is the later segment's either way)
@@ -226,8 +315,8 @@ def dynamic_com(
         )
         result = DynamicCom(curve, times, iteration, valid)
         if valid:
-            return result
-    return result
+            break
+    return DynamicOutcome(result, None)
 
 
 def _fixed_rows(
@@ -464,8 +553,7 @@ def _wrench_rows(
     layout: _Layout,
     phases: Sequence[ContactPhase],
     times: FloatArray,
-    basis: FloatArray,
-    basis2: FloatArray,
+    bases: Sequence[_Basis],
     lin: Sequence[tuple[FloatArray, FloatArray]],
 ) -> tuple[sparse.csr_matrix, FloatArray]:
     """Eq. 1 at every collocation sample, linearised about ``lin`` (per phase, the sample
@@ -478,6 +566,7 @@ def _wrench_rows(
     gvec = np.array([0.0, 0.0, -GRAVITY])
     row = 0
     for j, phase in enumerate(phases):
+        basis, basis2 = bases[j].basis, bases[j].basis2
         gens = phase.wrench_generators  # (m, 6): G' beta = w / (m g), beta in body weights
         c_bar, a_bar = lin[j]  # (s, 3) each
         n_s = c_bar.shape[0]
@@ -519,18 +608,19 @@ def _wrench_rows(
 def _cost(
     layout: _Layout,
     times: FloatArray,
-    basis: FloatArray,
-    basis2: FloatArray,
+    full: _Basis,
     settings: DynamicSettings,
     targets: Sequence[FloatArray] | None,
 ) -> tuple[sparse.csc_matrix, FloatArray]:
-    """0.5 x' P x + q' x: squared accelerations (times the phase's share of time),
-    squared distance to the reference, squared weights."""
+    """0.5 x' P x + q' x: squared accelerations (times the phase's share of time) and
+    squared distance to the reference ``targets`` (per phase, at ``full``'s fractions),
+    squared weights."""
     n = layout.n
     data: list[FloatArray] = []
     ri: list[NDArray[Any]] = []
     ci: list[NDArray[Any]] = []
     q = np.zeros(n)
+    basis, basis2 = full.basis, full.basis2
     samples = basis.shape[0]
     for j in range(layout.n_phases):
         duration = times[j + 1] - times[j]
@@ -581,22 +671,24 @@ def _solve_lazy(
     a_in: sparse.csr_matrix,
     b_in: FloatArray,
     working: BoolArray,
-) -> tuple[FloatArray | None, BoolArray]:
+) -> tuple[FloatArray | None, BoolArray, FloatArray | None]:
     """:func:`_solve` with the inequalities ``a_in`` x <= ``b_in`` and only the rows
     ``working`` (size,) of ``curve_rows``; when its answer breaks another of those by more
     than ``LAZY_ROW_TOLERANCE``, every one it comes within ``LAZY_ROW_MARGIN`` of joins them
     and the QP is solved again. The answer is that of the QP with every row (the rows left
     out are not binding at it), None when that QP is infeasible (a QP with fewer rows is,
     or rows are added until it is). Returns (the answer or None, the rows used, for the
-    next solve)."""
+    next solve, and :func:`_solve`'s certificate: its equality rows are the whole QP's)."""
     while True:
         rows, bounds = curve_rows.rows(working)
-        x = _solve(n, p, q, a_eq, b_eq, sparse.vstack([rows, a_in]), np.concatenate([bounds, b_in]))
+        x, certificate = _solve(
+            n, p, q, a_eq, b_eq, sparse.vstack([rows, a_in]), np.concatenate([bounds, b_in])
+        )
         if x is None:
-            return None, working
+            return None, working, certificate
         excess = curve_rows.excess(x)
         if not np.any(excess[~working] > LAZY_ROW_TOLERANCE):
-            return x, working
+            return x, working, None
         working = working | (excess > -LAZY_ROW_MARGIN)
 
 
@@ -608,12 +700,13 @@ def _solve(
     b_eq: FloatArray,
     a_in: sparse.spmatrix,
     b_in: FloatArray,
-) -> FloatArray | None:
-    """min 0.5 x'Px + q'x s.t. a_eq x = b_eq, a_in x <= b_in; None unless solved (to
-    ``SOLVER_TOLERANCE``, or ``REDUCED_TOLERANCE`` where progress stalls before, or nearly:
-    :func:`_nearly_solved`). Solved without refining the KKT solves first
-    (``SOLVER_REFINEMENT``), again with refinement when that run ends neither solved nor
-    with an infeasibility certificate."""
+) -> tuple[FloatArray | None, FloatArray | None]:
+    """min 0.5 x'Px + q'x s.t. a_eq x = b_eq, a_in x <= b_in: (the answer, None), the answer
+    None unless solved (to ``SOLVER_TOLERANCE``, or ``REDUCED_TOLERANCE`` where progress
+    stalls before, or nearly: :func:`_nearly_solved`); (None, the dual certificate, one per
+    row of a_eq then a_in) when Clarabel proves the QP primal infeasible. Solved without
+    refining the KKT solves first (``SOLVER_REFINEMENT``), again with refinement when that
+    run ends neither solved nor with an infeasibility certificate."""
     a = sparse.vstack([a_eq, a_in]).tocsc()
     b = np.concatenate([b_eq, b_in])
     cones = [clarabel.ZeroConeT(a_eq.shape[0]), clarabel.NonnegativeConeT(a_in.shape[0])]
@@ -627,10 +720,14 @@ def _solve(
         solution = clarabel.DefaultSolver(p, q, a, b, cones, settings).solve()
         if refine or solution.status in _SETTLED or _nearly_solved(solution):
             break
+    if solution.status == clarabel.SolverStatus.PrimalInfeasible:
+        certificate = np.asarray(solution.z, dtype=np.float64)
+        finite = certificate.shape == (b.size,) and np.all(np.isfinite(certificate))
+        return None, certificate if finite else None
     if solution.status not in _ANSWERED and not _nearly_solved(solution):
-        return None
+        return None, None
     x = np.asarray(solution.x, dtype=np.float64)
-    return x if x.shape == (n,) and np.all(np.isfinite(x)) else None
+    return (x if x.shape == (n,) and np.all(np.isfinite(x)) else None), None
 
 
 def _nearly_solved(solution: Any) -> bool:

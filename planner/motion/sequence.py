@@ -11,7 +11,7 @@ it with the whole body (2PAC section 7.2).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Collection, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import partial
 from typing import TYPE_CHECKING, Any
@@ -379,6 +379,19 @@ def dynamic_durations(
     return out
 
 
+@dataclass(frozen=True, slots=True, eq=False)
+class PlanCom:
+    """What :func:`dynamic_com` found: ``curve`` (None when no curve passes), the
+    ``factors`` on :func:`dynamic_durations` per phase (used, or the last tried),
+    ``stretched`` True when they include the shifts' stretch (:func:`_shift_stretch`), and
+    the phases ``blamed`` by the certificates of the QPs found infeasible."""
+
+    curve: trajectory.DynamicCom | None
+    factors: list[float]
+    stretched: bool
+    blamed: set[int]
+
+
 def dynamic_com(
     character: Character,
     data: OfflineData,
@@ -387,22 +400,50 @@ def dynamic_com(
     speed: float = 1.0,
     factors: Sequence[float] | None = None,
     levels: Sequence[float] = tuning.DYNAMIC_SLOWDOWNS,
-) -> tuple[trajectory.DynamicCom | None, list[float]]:
+) -> PlanCom:
     """A COM through ``states`` whose wrench lies in each phase's contact cone (Eq. 1) at
     the collocation times of ``trajectory.dynamic_com``, near 2PAC's ``reference`` curve,
     phase j lasting :func:`dynamic_durations` times ``factors[j]`` (default: the first of
     ``levels`` for every phase). When no curve passes, every phase is slowed to the next of
-    ``levels`` and the QP solved again. Returns (the curve or None, the factors used or the
-    last tried)."""
-    used = list(factors) if factors is not None else [levels[0]] * len(states)
-    while True:
-        found = _dynamic_window(character, data, states, reference, speed, used, 0, len(states))
+    ``levels`` and the QP solved again; past the last, through ``levels`` again with the
+    shifts stretched to their COM's travel (:func:`_shift_stretch`). The phases blamed are
+    :func:`_blamed` of each infeasible QP's ``trajectory.DynamicOutcome.blame``."""
+    n = len(states)
+    used = list(factors) if factors is not None else [levels[0]] * n
+    tries: list[list[float]] = []
+    trial: list[float] | None = used
+    while trial is not None:
+        tries.append(trial)
+        trial = _slower(trial, 0, n, levels)
+    stretch = _shift_stretch(character, states, speed)
+    plain = len(tries)
+    if max(stretch) > 1.0:
+        tries += [[f * s for f, s in zip(factors, stretch, strict=True)] for factors in tries]
+    blamed: set[int] = set()
+    for k, used in enumerate(tries):
+        outcome = _dynamic_window(character, data, states, reference, speed, used, 0, n)
+        found = outcome.com
         if found is not None and found.valid:
-            return found, used
-        slower = _slower(used, 0, len(states), levels)
-        if slower is None:
-            return None, used
-        used = slower
+            return PlanCom(found, used, k >= plain, set())
+        if outcome.blame is not None:
+            blamed |= _blamed(outcome.blame)
+    return PlanCom(None, used, len(tries) > plain, blamed)
+
+
+def _shift_stretch(
+    character: Character, states: Sequence[ContactState], speed: float
+) -> list[float]:
+    """Per phase, the factor (>= 1) on :func:`dynamic_durations` that gives a phase without a
+    swing, other than the first and last, the time to move the COM from its state's COM to
+    the next state's at ``DYNAMIC_SHIFT_SPEED`` times ``speed``."""
+    brisk = dynamic_durations(character, states, speed)
+    coms = [com_position(character.model, s.q) for s in states]
+    out = [1.0] * len(states)
+    for k in range(1, len(states) - 1):
+        if _swinging_limb(states, k) is None:
+            travel = float(np.linalg.norm(coms[k + 1] - coms[k]))
+            out[k] = max(1.0, travel / (tuning.DYNAMIC_SHIFT_SPEED * speed) / brisk[k])
+    return out
 
 
 def redo_window(
@@ -424,7 +465,7 @@ def redo_window(
     lo, hi = window
     found = _dynamic_window(
         character, data, states, reference, speed, factors, lo, hi, earlier.curve.segments
-    )
+    ).com
     if found is None or not found.valid:
         return None
     old = earlier.phase_times
@@ -455,10 +496,11 @@ def _dynamic_window(
     factors: Sequence[float],
     lo: int,
     hi: int,
-    around: Sequence[trajectory.BezierCurve] = (),
-) -> trajectory.DynamicCom | None:
+    around: Sequence[trajectory.BezierCurve] | Mapping[int, trajectory.BezierCurve] = (),
+) -> trajectory.DynamicOutcome:
     """The dynamic COM QP over phases [lo, hi) (times from 0), at rest at the plan's ends,
-    joined C2 to ``around``'s segments lo - 1 and hi (an earlier curve) elsewhere."""
+    joined C2 to ``around``'s segments lo - 1 and hi (an earlier curve, or the segments
+    next to the window) elsewhere."""
     durations = np.asarray(dynamic_durations(character, states, speed)) * np.asarray(factors)
     before = around[lo - 1] if lo > 0 else None
     after = around[hi] if hi < len(states) else None
@@ -472,7 +514,7 @@ def _dynamic_window(
         if after is not None
         else com_position(character.model, states[-1].q)
     )
-    return trajectory.dynamic_com(
+    return trajectory.solve_dynamic_com(
         [contact_phase(character, s) for s in states[lo:hi]],
         list(durations[lo:hi]),
         start,
@@ -480,6 +522,7 @@ def _dynamic_window(
         kinematics=plan_kinematics(character, data, states[:hi])[lo:],  # steps down before lo
         reference=reference.curve,
         reference_times=list(reference.phase_times[lo : hi + 1]),
+        settings=trajectory.DynamicSettings(sample_spacing=tuning.DYNAMIC_SAMPLE_SPACING),
         before=before,
         after=after,
     )
@@ -509,7 +552,11 @@ def _overlapped_com(
         kinematics=plan_kinematics(character, data, states),
         reference=reference.curve,
         reference_times=list(reference.phase_times),
-        settings=trajectory.DynamicSettings(margin=0.0, iterations=tuning.OVERLAP_ITERATIONS),
+        settings=trajectory.DynamicSettings(
+            margin=0.0,
+            iterations=tuning.OVERLAP_ITERATIONS,
+            sample_spacing=tuning.OVERLAP_SAMPLE_SPACING,
+        ),
     )
     return found if found is not None and found.valid else None
 
@@ -554,21 +601,11 @@ def _rest_window(
     quasi-static."""
     lo, hi = window
     n = len(states)
-    model = character.model
-    points = [_rest_point(model, states, j) for j in range(lo - 1, hi)]
-    rest, rest_times = rest_to_rest(
-        np.stack(points),
-        min_durations=np.maximum(
-            swing_durations(character, states, speed)[lo:hi],
-            np.diff(reference.phase_times)[lo:hi],
-        ).tolist(),
-        max_acceleration=tuning.FALLBACK_MAX_ACCELERATION,
-    )
     degree = earlier.curve.segments[0].degree
-    rested = [seg.elevate(degree - seg.degree) for seg in rest.segments]
+    rested, rest_durations = _rest_run(character, states, reference, speed, window, degree)
     around = [*earlier.curve.segments[:lo], *rested, *earlier.curve.segments[hi:]]
     durations = np.diff(earlier.phase_times).tolist()
-    durations[lo:hi] = np.diff(rest_times).tolist()
+    durations[lo:hi] = rest_durations
     floor = max((j + 1 for j in resting if j < lo), default=0)
     ceiling = min((j for j in resting if j >= hi), default=n)
     sides = []
@@ -585,7 +622,7 @@ def _rest_window(
             while trial is not None and not placed:
                 found = _dynamic_window(
                     character, data, states, reference, speed, trial, a, b, around
-                )
+                ).com
                 if found is not None and found.valid:
                     around[a:b] = found.curve.segments
                     durations[a:b] = np.diff(found.phase_times).tolist()
@@ -604,6 +641,122 @@ def _rest_window(
         trajectory.PiecewiseBezier(segments), times, earlier.iterations, earlier.valid
     )
     return spliced, used, first
+
+
+def _rest_run(
+    character: Character,
+    states: Sequence[ContactState],
+    reference: trajectory.ComTrajectory,
+    speed: float,
+    window: tuple[int, int],
+    degree: int,
+) -> tuple[list[trajectory.BezierCurve], list[float]]:
+    """The phases of ``window`` [lo, hi) stopping at rest between phases (2PAC's fallback):
+    a rest-to-rest quintic per phase from :func:`_rest_point` to the next, raised to
+    ``degree``, each lasting at least :func:`swing_durations` and as long as in 2PAC's
+    ``reference``. Returns (the segments, times from 0, and their durations, s)."""
+    lo, hi = window
+    points = [_rest_point(character.model, states, j) for j in range(lo - 1, hi)]
+    rest, rest_times = rest_to_rest(
+        np.stack(points),
+        min_durations=np.maximum(
+            swing_durations(character, states, speed)[lo:hi],
+            np.diff(reference.phase_times)[lo:hi],
+        ).tolist(),
+        max_acceleration=tuning.FALLBACK_MAX_ACCELERATION,
+    )
+    rested = [seg.elevate(degree - seg.degree) for seg in rest.segments]
+    return rested, np.diff(rest_times).tolist()
+
+
+def _runs(phases: Collection[int]) -> list[tuple[int, int]]:
+    """The maximal runs [lo, hi) of consecutive integers in ``phases``, in order."""
+    runs: list[tuple[int, int]] = []
+    for j in sorted(phases):
+        if runs and runs[-1][1] == j:
+            runs[-1] = (runs[-1][0], j + 1)
+        else:
+            runs.append((j, j + 1))
+    return runs
+
+
+def _blamed(blame: FloatArray, offset: int = 0) -> set[int]:
+    """The phases (indices plus ``offset``) carrying ``tuning.REST_BLAME_SHARE`` of
+    ``blame`` (per phase, summing to 1), the largest first."""
+    order = np.argsort(-blame, kind="stable")
+    count = int(np.searchsorted(np.cumsum(blame[order]), tuning.REST_BLAME_SHARE)) + 1
+    return {offset + int(j) for j in order[: min(count, blame.size)]}
+
+
+def _gaps_filled(phases: Collection[int]) -> set[int]:
+    """``phases`` with every gap of one phase between two of them filled (a lone dynamic
+    phase between two stops at rest starts and ends at rest: nothing to gain)."""
+    out = set(phases)
+    return out | {j + 1 for j in out if j + 1 not in out and j + 2 in out}
+
+
+def _resting_where_blamed(
+    character: Character,
+    data: OfflineData,
+    states: Sequence[ContactState],
+    reference: trajectory.ComTrajectory,
+    speed: float,
+    blamed: Collection[int],
+    levels: Sequence[float] = tuning.DYNAMIC_SLOWDOWNS,
+) -> tuple[trajectory.DynamicCom, list[float], set[int]] | None:
+    """A curve through ``states`` when the dynamic COM QP of the whole plan has no solution
+    at any of ``levels``: the phases its certificates blame (``blamed``: :func:`_blamed` at
+    each level) stop at rest between phases (:func:`_rest_run`), and each run of phases
+    between them gets its own dynamic curve, at rest at its ends, slowed through ``levels``
+    until its QP passes Eq. 1. A run with no curve at any level has the phases blamed at its
+    levels stop too, ``REST_BLAME_ROUNDS`` times at most. Returns (the curve, whose ``valid``
+    says only that its dynamic phases pass, the factors used, the phases stopping at rest),
+    or None."""
+    n = len(states)
+    degree = trajectory.DynamicSettings().degree
+    resting = _gaps_filled(blamed)
+    for _ in range(tuning.REST_BLAME_ROUNDS):
+        segments: dict[int, trajectory.BezierCurve] = {}
+        durations: dict[int, float] = {}
+        for lo, hi in _runs(resting):
+            rested, rest_durations = _rest_run(
+                character, states, reference, speed, (lo, hi), degree
+            )
+            segments.update(zip(range(lo, hi), rested, strict=True))
+            durations.update(zip(range(lo, hi), rest_durations, strict=True))
+        used = [levels[0]] * n
+        iterations = 0
+        more: set[int] = set()
+        for lo, hi in _runs(set(range(n)) - resting):
+            trial: list[float] | None = used
+            blamed_here: set[int] = set()
+            while trial is not None:
+                outcome = _dynamic_window(
+                    character, data, states, reference, speed, trial, lo, hi, segments
+                )
+                found = outcome.com
+                if found is not None and found.valid:
+                    segments.update(zip(range(lo, hi), found.curve.segments, strict=True))
+                    durations.update(zip(range(lo, hi), np.diff(found.phase_times), strict=True))
+                    used, iterations = trial, max(iterations, found.iterations)
+                    break
+                if outcome.blame is not None:
+                    blamed_here |= _blamed(outcome.blame, lo)
+                trial = _slower(trial, lo, hi, levels)
+            else:  # no curve at any level
+                if not blamed_here:
+                    return None
+                more |= blamed_here
+        if not more:
+            if len(resting) == n:  # no dynamic phase left: 2PAC's own curve does better
+                return None
+            times = np.concatenate([[0.0], np.cumsum([durations[j] for j in range(n)])])
+            curve = trajectory.PiecewiseBezier(
+                tuple(segments[j].retimed(float(times[j]), float(times[j + 1])) for j in range(n))
+            )
+            return trajectory.DynamicCom(curve, times, iterations, True), used, resting
+        resting = _gaps_filled(resting | more)
+    return None
 
 
 def _slower(
@@ -825,14 +978,36 @@ def sequence_motion(
         overlapped = overlap
         break
     if n >= 2 and built is None:
-        dynamic, factors_tried = dynamic_com(
-            character, data, states, com_trajectory, speed, None, levels
-        )
+        whole = dynamic_com(character, data, states, com_trajectory, speed, None, levels)
+        dynamic, factors_tried, blamed = whole.curve, whole.factors, whole.blamed
+        if whole.stretched:
+            trials.append(
+                f"no curve passes Eq. 1 up to {max(levels):g} times the brisk durations: the "
+                "weight shifts lengthened to move the COM between their states' at "
+                f"{tuning.DYNAMIC_SHIFT_SPEED:g} m/s"
+            )
         if dynamic is None:
             dynamic_refused = (
                 f"no curve passes Eq. 1 up to {max(factors_tried):g} times the brisk durations"
             )
             trials.append(dynamic_refused)
+            # the phases its infeasibility certificate blames stop at rest, the dynamic curve
+            # found between them (a fallback per window)
+            split = (
+                _resting_where_blamed(
+                    character, data, states, com_trajectory, speed, blamed, levels
+                )
+                if blamed
+                else None
+            )
+            if split is not None:
+                dynamic, factors_tried, at_rest = split
+                resting.update(at_rest)
+                runs = ", ".join(f"{lo} to {hi - 1}" for lo, hi in _runs(at_rest))
+                trials.append(
+                    f"phases {runs} stop at rest between phases (the phases Eq. 1's "
+                    "infeasibility certificate weighs most), the dynamic curve found between"
+                )
     keep: tuple[BuiltMotion, int] | None = None
     last: _Trial | None = None  # the last trial build, and what it was built from
     replans: list[str] = []

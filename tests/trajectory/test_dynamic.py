@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from scipy import sparse
 
 import trajectory
-from tests.trajectory.helpers import figure2_phases, walking_phases
+from tests.trajectory.helpers import figure2_phases, patch, walking_phases
 from trajectory import Halfspaces
 
 HEIGHT = 0.9
@@ -214,9 +214,9 @@ def test_rows_left_out_until_needed_give_the_answer_of_the_qp_with_every_row(
     original = trajectory.dynamic._solve_lazy
 
     def recording(*args: Any) -> Any:
-        x, working = original(*args)
+        x, working, certificate = original(*args)
         solves.append((args, x, working))
-        return x, working
+        return x, working, certificate
 
     monkeypatch.setattr(trajectory.dynamic, "_solve_lazy", recording)
     lazy = trajectory.dynamic_com(phases, durations, start, end, kinematics=[wall] * 5)
@@ -241,8 +241,8 @@ def test_rows_left_out_until_needed_give_the_answer_of_the_qp_with_every_row(
         np.testing.assert_allclose(curve_rows.excess(x), rows @ x - bounds, atol=1e-12)
         np.testing.assert_allclose(a_eq @ x, b_eq, atol=1e-6)
         assert float(np.max(a_in @ x - b_in)) <= 1e-6
-        whole = trajectory.dynamic._solve(n, p, q, a_eq, b_eq, a_in, b_in)
-        assert whole is not None
+        whole, certificate = trajectory.dynamic._solve(n, p, q, a_eq, b_eq, a_in, b_in)
+        assert whole is not None and certificate is None
         np.testing.assert_allclose(x[:n_curve], whole[:n_curve], atol=1e-6)
         added += int(used.sum() - working.sum())
     assert added > 0  # the wall's rows did enter
@@ -367,7 +367,7 @@ def test_the_curve_rows_are_the_box_then_the_kinematic_rows_in_order() -> None:
 
     phases, _, start, _ = _walk(3, 0.6, 0.4)
     d, samples = 5, 4
-    layout = dynamic._Layout(phases, d, samples)
+    layout = dynamic._Layout(phases, d, [samples] * len(phases))
     rng = np.random.default_rng(2)
     normals = rng.normal(size=(6, 3))
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
@@ -446,3 +446,61 @@ def test_a_run_that_stalls_near_the_answer_is_taken_only_within_the_stalled_tole
     assert (True in runs) is not taken
     if taken:
         assert len(runs) == stalled.iterations  # one run per linearisation round
+
+
+@pytest.mark.parametrize("far", [3, 5])
+def test_an_infeasible_qp_blames_the_phase_whose_contacts_cannot_carry_the_curve(
+    far: int,
+) -> None:
+    """A walk of 7 phases whose single-support phase ``far`` stands on a foot 1 m to the
+    side (out of the trust box's reach): no curve, and Clarabel's certificate puts most of
+    its weight on that phase's Eq. 1 rows; a feasible walk blames nothing."""
+    phases, durations, start, end = _walk(7, 0.4, 0.15)
+    outcome = trajectory.solve_dynamic_com(phases, durations, start, end)
+    assert outcome.com is not None and outcome.com.valid and outcome.blame is None
+    aside = patch(np.array([0.3, 1.0, 0.0]), np.array([0.0, 0.0, 1.0]), half=0.08)
+    phases[far] = trajectory.ContactPhase([aside])
+    outcome = trajectory.solve_dynamic_com(phases, durations, start, end)
+    assert outcome.com is None and outcome.blame is not None
+    assert outcome.blame.shape == (7,)
+    np.testing.assert_allclose(outcome.blame.sum(), 1.0)
+    assert int(np.argmax(outcome.blame)) == far
+    assert outcome.blame[far] > 0.5
+
+
+def test_sample_spacing_gives_a_short_phase_fewer_collocation_times() -> None:
+    """``sample_spacing``: as many samples as that spacing takes, ``MIN_PHASE_SAMPLES`` at
+    least and ``samples`` at most; 0 keeps ``samples`` for every phase; negative is refused."""
+    spaced = trajectory.DynamicSettings(sample_spacing=0.01)
+    assert spaced.phase_samples(0.04) == 5
+    assert spaced.phase_samples(0.05) == 6
+    assert spaced.phase_samples(0.001) == trajectory.dynamic.MIN_PHASE_SAMPLES
+    assert spaced.phase_samples(0.5) == spaced.samples
+    assert trajectory.DynamicSettings().phase_samples(0.04) == 12
+    with pytest.raises(ValueError, match="sample_spacing"):
+        trajectory.DynamicSettings(sample_spacing=-0.01)
+
+
+def test_a_walk_sampled_by_spacing_passes_eq1_at_its_own_collocation_times() -> None:
+    """A brisk walk of short phases (0.05 s shifts) sampled every 10 ms: a smaller QP (fewer
+    generator weights) whose curve passes Eq. 1 at each phase's own collocation times, keeps
+    its ends at rest and stays within 2 cm of the curve sampled 12 times per phase (the same
+    cost, taken at 12 times per phase either way)."""
+    phases, durations, start, end = _walk(7, 0.3, 0.05)
+    settings = trajectory.DynamicSettings(sample_spacing=0.01)
+    spaced = trajectory.dynamic_com(phases, durations, start, end, settings=settings)
+    dense = trajectory.dynamic_com(phases, durations, start, end)
+    assert spaced is not None and spaced.valid and dense is not None and dense.valid
+    counts = [settings.phase_samples(d) for d in durations]
+    assert sum(counts) < 12 * len(durations)
+    for phase, t0, t1, count in zip(
+        phases, spaced.phase_times[:-1], spaced.phase_times[1:], counts, strict=True
+    ):
+        times = np.linspace(t0, t1, count)
+        for c, a in zip(spaced.curve(times), spaced.curve.derivative(2)(times), strict=True):
+            assert trajectory.equilibrium_margin(phase, c, a).feasible
+    curve = spaced.curve
+    np.testing.assert_allclose(curve(curve.t0), start, atol=1e-6)
+    np.testing.assert_allclose(curve(curve.t1), end, atol=1e-6)
+    grid = np.linspace(curve.t0, curve.t1, 200)
+    assert float(np.max(np.linalg.norm(curve(grid) - dense.curve(grid), axis=1))) < 0.02

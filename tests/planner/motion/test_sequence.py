@@ -25,8 +25,12 @@ from planner.motion import tuning
 from planner.motion.builder import keyframe_grid
 from planner.motion.sequence import (
     Timing,
+    _blamed,
+    _gaps_filled,
     _rest_point,
     _rest_window,
+    _resting_where_blamed,
+    _runs,
     contact_phase,
     dynamic_com,
     dynamic_durations,
@@ -118,8 +122,9 @@ def test_a_window_that_stops_joins_the_dynamic_curve_at_rest() -> None:
     n = len(states)
     model = character.model
     reference, _ = timed_com(character, data, states, Timing(), swing_durations(character, states))
-    earlier, factors = dynamic_com(character, data, states, reference)
-    assert earlier is not None
+    whole = dynamic_com(character, data, states, reference)
+    earlier, factors = whole.curve, whole.factors
+    assert earlier is not None and not whole.stretched and whole.blamed == set()
     lo, hi = 2, 4
     stopped = _rest_window(character, data, states, reference, earlier, factors, (lo, hi))
     assert stopped is not None
@@ -150,6 +155,50 @@ def test_a_window_that_stops_joins_the_dynamic_curve_at_rest() -> None:
         np.testing.assert_allclose(
             segments[j].control_points, earlier.curve.segments[j].control_points, atol=1e-12
         )
+
+
+def test_phases_blamed_for_an_infeasible_plan_stop_and_the_rest_stays_dynamic() -> None:
+    """The phases an infeasible whole-plan QP's certificate blames stop at rest between
+    phases; every run of phases between them gets its own dynamic curve, at rest where it
+    meets a stop: the curve is C2 at every phase boundary, still at both ends of each
+    resting phase, through its rest points, and the dynamic phases pass Eq. 1 at their
+    collocation times."""
+    ctx, states = _hexapod_steps()
+    character, data = ctx.character, ctx.data
+    n = len(states)
+    reference, _ = timed_com(character, data, states, Timing(), swing_durations(character, states))
+    found = _resting_where_blamed(character, data, states, reference, 1.0, {3})
+    assert found is not None
+    curve, used, resting = found
+    assert resting == {3} and len(used) == n and curve.valid
+    times, segments = curve.phase_times, curve.curve.segments
+    assert len(segments) == n and np.all(np.diff(times) > 0)
+    velocity, acceleration = curve.curve.derivative(1), curve.curve.derivative(2)
+    for t in times[1:-1]:
+        for c in (curve.curve, velocity, acceleration):
+            np.testing.assert_allclose(c(t - 1e-9), c(t + 1e-9), atol=1e-5)
+    for t in (times[3] + 1e-9, times[4] - 1e-9):
+        assert np.linalg.norm(velocity(t)) < 1e-6
+    np.testing.assert_allclose(curve.curve(times[4]), _rest_point(character.model, states, 3))
+    dynamic = [j for j in range(n) if j not in resting]
+    reports = trajectory.validate_dynamics(
+        curve.curve, [contact_phase(character, s) for s in states], times, 12
+    )
+    assert all(reports[j].fraction_valid == 1.0 for j in dynamic)
+
+
+def test_runs_blame_and_filled_gaps() -> None:
+    """``_runs``: the maximal runs of consecutive phases, in order; ``_blamed``: the
+    phases carrying ``REST_BLAME_SHARE`` of the blame, largest first; ``_gaps_filled``: a
+    lone phase between two others joins them."""
+    assert _runs({7, 1, 2, 3, 5}) == [(1, 4), (5, 6), (7, 8)]
+    assert _runs(set()) == []
+    blame = np.array([0.02, 0.62, 0.01, 0.3, 0.05])
+    assert _blamed(blame) == {1, 3}
+    assert _blamed(blame, offset=10) == {11, 13}
+    assert _blamed(np.array([1.0])) == {0}
+    assert _gaps_filled({1, 3, 7}) == {1, 2, 3, 7}
+    assert _gaps_filled({1, 4}) == {1, 4}
 
 
 def test_phases_remembered_per_state_equal_fresh_ones() -> None:
