@@ -149,35 +149,48 @@ def plan_kinematics(
     character: Character, data: OfflineData, states: Sequence[ContactState]
 ) -> list[trajectory.Halfspaces | None]:
     """Per state, K c <= k (world frame) that a plan's COM keeps to while its contacts are
-    held: :func:`phase_kinematics`, and for a state entered by a step down (a limb put
-    ``STEP_DOWN`` or more below where it left) the COM at most ``COM_ABOVE_STATE`` above the
-    state's own COM (the height its whole-body posture was found at)."""
+    held: :func:`phase_kinematics`, the COM at most ``COM_BELOW_STATES`` below the lower of
+    the state's own COM and the next state's, and for a state entered by a step down (a limb
+    put ``STEP_DOWN`` or more below where it left) at most ``COM_ABOVE_STATE`` above the
+    state's own COM (the heights their whole-body postures were found at)."""
     out: list[trajectory.Halfspaces | None] = []
     last: dict[str, float] = {}  # per limb, the height of its latest contact
-    for state in states:
+    for k, state in enumerate(states):
         kinematics = phase_kinematics(data, state)
         stepped_down = any(
             c.limb in last and c.placement[2, 3] <= last[c.limb] - tuning.STEP_DOWN
             for c in state.contacts
         )
-        if kinematics is not None and stepped_down:
+        following = states[min(k + 1, len(states) - 1)]
+        if kinematics is not None:
             kinematics = _per_state(
-                ("below", id(state), id(kinematics), id(character.model)),
-                (state, kinematics, character.model),
-                partial(_below_state_height, character, state, kinematics),
+                ("heights", id(state), id(following), id(kinematics), id(character.model)),
+                (state, following, kinematics, character.model),
+                partial(_state_heights, character, state, following, kinematics, stepped_down),
             )
         out.append(kinematics)
         last.update((c.limb, float(c.placement[2, 3])) for c in state.contacts)
     return out
 
 
-def _below_state_height(
-    character: Character, state: ContactState, kinematics: trajectory.Halfspaces
+def _state_heights(
+    character: Character,
+    state: ContactState,
+    following: ContactState,
+    kinematics: trajectory.Halfspaces,
+    capped: bool,
 ) -> trajectory.Halfspaces:
+    """``kinematics`` with the COM's floor below ``state``'s and ``following``'s COMs and,
+    when ``capped``, its ceiling above ``state``'s (:func:`plan_kinematics`)."""
     height = float(com_position(character.model, state.q)[2])
+    lowest = min(height, float(com_position(character.model, following.q)[2]))
+    rows = [[0.0, 0.0, -1.0]]
+    bounds = [tuning.COM_BELOW_STATES - lowest]
+    if capped:
+        rows.append([0.0, 0.0, 1.0])
+        bounds.append(height + tuning.COM_ABOVE_STATE)
     return trajectory.Halfspaces(
-        np.vstack([kinematics.A, [[0.0, 0.0, 1.0]]]),
-        np.concatenate([kinematics.b, [height + tuning.COM_ABOVE_STATE]]),
+        np.vstack([kinematics.A, rows]), np.concatenate([kinematics.b, bounds])
     )
 
 

@@ -345,6 +345,17 @@ STEP_DOWN = 0.05
 """m: a limb put at least this much lower than where it left makes a step down, whose state
 keeps a plan's COM within ``COM_ABOVE_STATE`` of its own height."""
 
+COM_BELOW_STATES = 0.2
+"""m: while a plan's phase holds the contacts of a state, its COM curve and transition points
+stay at most this far below the lower of that state's COM and the next state's (the heights
+their whole-body postures were found at). The effectors' COM polytopes are hulls of samples
+with the limbs anywhere, a foot as high as the hip among them, so they let the COM down to
+the feet: the "low" transition cost (2PAC 7.3) walked the humanoid's COM down to the ground
+by its fourth step, its feet 19 mm into the floor (APPROXIMATE at every strength). On its
+0.6 m walk (seed 7) the COM then crouches 0.24 m at most: SOLVED at 0.25 (slowed to 1.5,
+keyframe COM 27 mm off its curve, p99), at 0.2 (slowed to 1.0, 11 mm) and at 0.15 (0.75,
+4 mm); the reference plans' curves never come this low."""
+
 COM_ABOVE_STATE = 0.05
 """m: while a plan's phase holds the contacts of a state entered by a step down, its COM curve
 and transition points stay at most this far above the COM of that state's own whole-body

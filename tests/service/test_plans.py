@@ -219,6 +219,9 @@ async def test_speed_cost_and_attractors_shape_the_com(client: httpx.AsyncClient
         return np.array(out)
 
     assert com_at_changes(lowered)[:, 2].mean() < com_at_changes(plain)[:, 2].mean() - 0.01
+    # as low as the body goes (the states' COMs less COM_BELOW_STATES), and played cleanly
+    assert com_at_changes(lowered)[:, 2].min() > com_at_changes(plain)[:, 2].min() - 0.3
+    assert lowered["status"] == "SOLVED", lowered["message"]
     first = com_at_changes(plain)[0]
     # over the middle of the support the first change leaves (balanced for both phases),
     # at the height the COM has there

@@ -234,13 +234,15 @@ def test_phases_remembered_per_state_equal_fresh_ones() -> None:
 
 def test_a_step_down_keeps_the_com_within_reach_of_its_states_own_height() -> None:
     """A plan's kinematic constraints of a state are its effectors' COM polytopes (2PAC
-    Eq. 4), and for a state entered by a step down (a limb put ``STEP_DOWN`` or more below
+    Eq. 4), a floor ``COM_BELOW_STATES`` below the lower of the state's own COM and the next
+    state's, and for a state entered by a step down (a limb put ``STEP_DOWN`` or more below
     where it left) a cap ``COM_ABOVE_STATE`` above the state's own COM. The hexapod's steps
     on flat ground are no step down, the same steps 10 cm down are."""
     from planner.motion import sequence
 
     ctx, flat = _hexapod_steps()
     character, data = ctx.character, ctx.data
+    model = character.model
     down = [flat[0]]
     for state in flat[1:]:
         contacts = []
@@ -253,24 +255,29 @@ def test_a_step_down_keeps_the_com_within_reach_of_its_states_own_height() -> No
             contacts.append(c)
         down.append(ContactState(state.q, tuple(contacts)))
 
-    def rows(kinematics: trajectory.Halfspaces | None) -> int:
-        assert kinematics is not None
-        return len(kinematics.b)
-
     for states, steps in ((flat, []), (down, [2, 4, 6])):  # the states each foot is put down in
         planned = sequence.plan_kinematics(character, data, states)
         polytopes = [sequence.phase_kinematics(data, s) for s in states]
-        assert [j for j in range(len(states)) if rows(planned[j]) > rows(polytopes[j])] == steps
-        for j in steps:
-            kin, alone = planned[j], polytopes[j]
+        for j, (kin, alone) in enumerate(zip(planned, polytopes, strict=True)):
             assert kin is not None and alone is not None
-            assert np.array_equal(kin.A[:-1], alone.A) and np.array_equal(kin.b[:-1], alone.b)
-            # the cap: the state's own COM keeps to it, a point 1 cm above it does not
-            com = com_position(character.model, states[j].q)
-            above = com + np.array([0.0, 0.0, tuning.COM_ABOVE_STATE + 0.01])
-            assert np.array_equal(kin.A[-1], [0.0, 0.0, 1.0])
-            assert float(kin.A[-1] @ com - kin.b[-1]) == pytest.approx(-tuning.COM_ABOVE_STATE)
-            assert float(kin.A[-1] @ above - kin.b[-1]) == pytest.approx(0.01)
+            added = 2 if j in steps else 1
+            assert len(kin.b) == len(alone.b) + added
+            assert np.array_equal(kin.A[: len(alone.b)], alone.A)
+            assert np.array_equal(kin.b[: len(alone.b)], alone.b)
+            # the floor: a point on it keeps to it, one 1 cm under it does not
+            com = com_position(model, states[j].q)
+            following = com_position(model, states[min(j + 1, len(states) - 1)].q)
+            floor = min(com[2], following[2]) - tuning.COM_BELOW_STATES
+            row, bound = kin.A[len(alone.b)], kin.b[len(alone.b)]
+            assert np.array_equal(row, [0.0, 0.0, -1.0])
+            assert float(row @ [com[0], com[1], floor] - bound) == pytest.approx(0.0, abs=1e-12)
+            assert float(row @ [com[0], com[1], floor - 0.01] - bound) == pytest.approx(0.01)
+            if j in steps:
+                # the cap: the state's own COM keeps to it, a point 1 cm above it does not
+                above = com + np.array([0.0, 0.0, tuning.COM_ABOVE_STATE + 0.01])
+                assert np.array_equal(kin.A[-1], [0.0, 0.0, 1.0])
+                assert float(kin.A[-1] @ com - kin.b[-1]) == pytest.approx(-tuning.COM_ABOVE_STATE)
+                assert float(kin.A[-1] @ above - kin.b[-1]) == pytest.approx(0.01)
 
 
 def _fake_build(original: tuple[ContactState, ...], bad: int, replanned_clean: bool):  # type: ignore[no-untyped-def]
