@@ -219,9 +219,8 @@ def solve_dynamic_com(
     durations[j] s, whose wrench lies in phase j's contact cone at its collocation times
     (``DynamicSettings.phase_samples``) and whose position satisfies ``kinematics[j]``
     there. The curve stays near ``reference`` (or None), whose phase j spans
-    reference_times[j] to
-    reference_times[j + 1] (n + 1 times, s; the reference is compared phase by phase at the
-    same fractions of each phase). None when a
+    reference_times[j] to reference_times[j + 1] (n + 1 times, s; the reference is compared
+    phase by phase at the same fractions of each phase). None when a
     QP is infeasible (the outcome's ``blame`` then says which phases); ``valid`` False when
     the linearisation did not settle into an exactly valid curve within
     ``settings.iterations`` rounds. ``before`` / ``after`` : segments (of

@@ -667,7 +667,7 @@ def _rest_run(
     """The phases of ``window`` [lo, hi) stopping at rest between phases (2PAC's fallback):
     a rest-to-rest quintic per phase from :func:`_rest_point` to the next, raised to
     ``degree``, each lasting at least :func:`swing_durations` and as long as in 2PAC's
-    ``reference``. Returns (the segments, times from 0, and their durations, s)."""
+    ``reference``. Returns (the segments, their durations in s)."""
     lo, hi = window
     points = [_rest_point(character.model, states, j) for j in range(lo - 1, hi)]
     rest, rest_times = rest_to_rest(
@@ -724,7 +724,8 @@ def _resting_where_blamed(
     until its QP passes Eq. 1. A run with no curve at any level has the phases blamed at its
     levels stop too, ``REST_BLAME_ROUNDS`` times at most. Returns (the curve, whose ``valid``
     says only that its dynamic phases pass, the factors used, the phases stopping at rest),
-    or None."""
+    or None (also when every phase would stop: 2PAC's curve, through its own transition
+    points, is then the better fallback)."""
     n = len(states)
     degree = trajectory.DynamicSettings().degree
     resting = _gaps_filled(blamed)
@@ -995,13 +996,14 @@ def sequence_motion(
         dynamic, factors_tried, blamed = whole.curve, whole.factors, whole.blamed
         if whole.stretched:
             trials.append(
-                f"no curve passes Eq. 1 up to {max(levels):g} times the brisk durations: the "
-                "weight shifts lengthened to move the COM between their states' at "
-                f"{tuning.DYNAMIC_SHIFT_SPEED:g} m/s"
+                f"no curve passes Eq. 1 up to {max(levels):g} times the brisk durations: tried "
+                "again with the weight shifts lengthened to move the COM between their states' "
+                f"at {tuning.DYNAMIC_SHIFT_SPEED:g} m/s"
             )
         if dynamic is None:
             dynamic_refused = (
-                f"no curve passes Eq. 1 up to {max(factors_tried):g} times the brisk durations"
+                f"no curve passes Eq. 1 up to {max(levels):g} times the brisk durations"
+                + (", the weight shifts lengthened or not" if whole.stretched else "")
             )
             trials.append(dynamic_refused)
             # the phases its infeasibility certificate blames stop at rest, the dynamic curve
