@@ -160,6 +160,58 @@ def keyframe_grid(t0: float, t1: float, rate: float) -> FloatArray:
     return np.asarray(t0 + (t1 - t0) * np.arange(count + 1) / count, dtype=np.float64)
 
 
+def phase_keyframe_times(t0: float, t1: float, rate: float, breaks: Sequence[float]) -> FloatArray:
+    """:func:`keyframe_grid` from ``t0`` to ``t1`` with every phase holding a time: a phase
+    (between consecutive ``breaks``, the phases' ends, s; a time at a break is the later
+    phase's) shorter than a period that no time falls in gets the nearer inner time moved
+    into it, toward its middle, by at most ``KEYFRAME_SHIFT`` of a period, when the phase it
+    leaves keeps another time. The gaps stay between half a period and one and a half."""
+    grid = keyframe_grid(t0, t1, rate)
+    period = 1.0 / rate
+    ends = sorted(float(b) for b in breaks)
+
+    def phase_of(t: float) -> int:
+        return min(bisect.bisect_right(ends, t), len(ends) - 1)
+
+    counts: dict[int, int] = {}
+    for t in grid:
+        counts[phase_of(float(t))] = counts.get(phase_of(float(t)), 0) + 1
+    starts = [-math.inf, *ends]
+    for k in range(len(ends)):
+        a, b = max(starts[k], t0), min(ends[k], t1)
+        if b <= a or counts.get(k, 0):
+            continue
+        after = int(np.searchsorted(grid, a))  # the first time at or after the phase's start
+        nearer = sorted(
+            (after - 1, after),
+            key=lambda i: abs(grid[min(max(i, 0), len(grid) - 1)] - 0.5 * (a + b)),
+        )
+        for i in nearer:
+            if i <= 0 or i >= len(grid) - 1:
+                continue  # the first and last times stay
+            g = float(grid[i])
+            target = min(
+                max(0.5 * (a + b), g - KEYFRAME_SHIFT * period), g + KEYFRAME_SHIFT * period
+            )
+            leaving = phase_of(g)
+            if not a <= target < b or phase_of(target) != k or counts.get(leaving, 0) < 2:
+                continue
+            if not 0.5 * period <= target - grid[i - 1] <= 1.5 * period:
+                continue
+            if not 0.5 * period <= grid[i + 1] - target <= 1.5 * period:
+                continue
+            grid[i] = target
+            counts[leaving] -= 1
+            counts[k] = 1
+            break
+    return grid
+
+
+KEYFRAME_SHIFT = 0.45
+"""Of a keyframe period, the farthest :func:`phase_keyframe_times` moves a time into a phase
+that has none."""
+
+
 def _slerp(a: FloatArray, b: FloatArray, u: float) -> FloatArray:
     """(3, 3) rotation a fraction ``u`` of the way from ``a`` (3, 3) to ``b`` (3, 3)."""
     step = pin.log3(a.T @ b)
@@ -175,7 +227,7 @@ class _Targets:
         self.character = character
         self.spec = spec
         self.breaks = np.array([p.t1 for p in spec.phases])
-        self._break_list = [float(p.t1) for p in spec.phases]
+        self.break_list = [float(p.t1) for p in spec.phases]
         self.lifts: dict[int, float] = {}
         self.clearings: dict[int, float] = {}
         self.tucks: dict[int, tuple[float, float]] = {}
@@ -224,7 +276,7 @@ class _Targets:
 
     def phase_index(self, t: float) -> int:
         """The phase running at ``t`` (the later one at a boundary)."""
-        k = bisect.bisect_right(self._break_list, t)  # np.searchsorted's, in plain floats
+        k = bisect.bisect_right(self.break_list, t)  # np.searchsorted's, in plain floats
         return min(k, len(self.spec.phases) - 1)
 
     def arc(self, k: int) -> Any:
@@ -729,9 +781,12 @@ def _build_motion(
     if kept.keyframes:
         kept.q = np.array(kept.keyframes[-1].q, dtype=np.float64)
         t_kept = kept.keyframes[-1].t
-        grid = keyframe_grid(t_kept, spec.phases[-1].t1, spec.rate).tolist()[1:]
+        grid = phase_keyframe_times(t_kept, spec.phases[-1].t1, spec.rate, targets.break_list)
+        grid = grid.tolist()[1:]
     else:
-        grid = keyframe_grid(spec.phases[0].t0, spec.phases[-1].t1, spec.rate).tolist()
+        grid = phase_keyframe_times(
+            spec.phases[0].t0, spec.phases[-1].t1, spec.rate, targets.break_list
+        ).tolist()
     groups: list[list[float]] = []
     for t in grid:
         k = targets.phase_index(t)

@@ -3,11 +3,14 @@ its curve, keyframes evenly spaced and checked, the same answer twice."""
 
 from __future__ import annotations
 
+import bisect
 from dataclasses import replace
 from functools import cache
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import trajectory
 from planner.contact.checks import hold_error, make_contact, within_limits
@@ -22,7 +25,7 @@ from planner.kinematics import (
     solve_ik,
 )
 from planner.motion import tuning
-from planner.motion.builder import keyframe_grid
+from planner.motion.builder import keyframe_grid, phase_keyframe_times
 from planner.motion.sequence import (
     Timing,
     _blamed,
@@ -388,3 +391,37 @@ def test_a_chest_standing_back_up_takes_its_time() -> None:
         assert durations[0] >= turn_s - 1e-9 and durations[1] >= turn_s - 1e-9
         assert durations[2] < turn_s  # the sway after it is not timed (0.3 rad, at rest)
     assert max(swing_durations(character, [states[2], states[0]])) < turn_s
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    lengths=st.lists(st.floats(0.004, 0.3), min_size=1, max_size=12),
+    rate=st.sampled_from([24.0, 30.0, 60.0]),
+)
+def test_keyframe_times_put_a_time_in_a_short_phase_and_keep_the_spacing(
+    lengths: list[float], rate: float
+) -> None:
+    """``phase_keyframe_times``: the grid's ends, gaps of half a period to one and a half, a
+    phase that had a time keeps one, a short phase between two phases of two periods or more
+    gets one, and a grid whose every phase has a time is ``keyframe_grid`` itself."""
+    ends = np.cumsum(lengths).tolist()
+    t1 = ends[-1]
+    period = 1.0 / rate
+    plain = keyframe_grid(0.0, t1, rate)
+    times = phase_keyframe_times(0.0, t1, rate, ends)
+    assert times[0] == 0.0 and times[-1] == pytest.approx(t1) and len(times) == len(plain)
+    if t1 >= 0.5 * period:
+        gaps = np.diff(times)
+        assert gaps.min() >= 0.5 * period - 1e-9 and gaps.max() <= 1.5 * period + 1e-9
+
+    def held(grid: np.ndarray) -> list[int]:
+        phase = [min(bisect.bisect_right(ends, float(t)), len(ends) - 1) for t in grid]
+        return [phase.count(k) for k in range(len(ends))]
+
+    before, after = held(plain), held(times)
+    assert all(a >= 1 for a, b in zip(after, before, strict=True) if b >= 1)
+    if all(b >= 1 for b in before):
+        np.testing.assert_array_equal(times, plain)
+    for k in range(1, len(ends) - 1):
+        if lengths[k - 1] >= 2 * period and lengths[k + 1] >= 2 * period:
+            assert after[k] >= 1, (k, lengths)
