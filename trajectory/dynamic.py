@@ -23,9 +23,9 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ParamSpec
 
 import clarabel
 import numpy as np
@@ -37,6 +37,8 @@ from trajectory.bezier import BezierCurve, PiecewiseBezier, bernstein
 from trajectory.contacts import ContactPhase
 from trajectory.equilibrium import equilibrium_margin
 from trajectory.polytope import Halfspaces
+
+P = ParamSpec("P")
 
 
 @dataclass(frozen=True, slots=True)
@@ -174,34 +176,6 @@ class DynamicOutcome:
     blame: FloatArray | None
 
 
-def dynamic_com(
-    phases: Sequence[ContactPhase],
-    durations: Sequence[float],
-    start: FloatArray,
-    end: FloatArray,
-    *,
-    kinematics: Sequence[Halfspaces | None] | None = None,
-    reference: PiecewiseBezier | None = None,
-    reference_times: Sequence[float] | None = None,
-    settings: DynamicSettings | None = None,
-    before: BezierCurve | None = None,
-    after: BezierCurve | None = None,
-) -> DynamicCom | None:
-    """:func:`solve_dynamic_com`'s curve."""
-    return solve_dynamic_com(
-        phases,
-        durations,
-        start,
-        end,
-        kinematics=kinematics,
-        reference=reference,
-        reference_times=reference_times,
-        settings=settings,
-        before=before,
-        after=after,
-    ).com
-
-
 def solve_dynamic_com(
     phases: Sequence[ContactPhase],
     durations: Sequence[float],
@@ -316,6 +290,19 @@ def solve_dynamic_com(
         if valid:
             break
     return DynamicOutcome(result, None)
+
+
+def _curve_only(solve: Callable[P, DynamicOutcome]) -> Callable[P, DynamicCom | None]:
+    """``solve`` answering its outcome's curve only."""
+
+    def curve(*args: P.args, **kwargs: P.kwargs) -> DynamicCom | None:
+        return solve(*args, **kwargs).com
+
+    return curve
+
+
+dynamic_com = _curve_only(solve_dynamic_com)
+""":func:`solve_dynamic_com`'s curve (same arguments): None when a QP is infeasible."""
 
 
 def _fixed_rows(
