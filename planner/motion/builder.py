@@ -555,9 +555,13 @@ def _clearing_top(targets: _Targets, checker: KeyframeChecker, k: int) -> float:
 def _swing_at_fault(segment: _Segment, shapes: frozenset[str]) -> bool:
     """Whether the swinging limb (its collision ``shapes``) is what went wrong in
     ``segment``: it missed its landing, or one of its shapes is the deepest in a colliding
-    keyframe."""
+    keyframe, in the scene or into another body part (a foot brushing the stance foot)."""
     missed = segment.landing_error > tuning.LANDING_TOLERANCE
-    return missed or any(c.colliding and c.shape in shapes for c in segment.checks)
+    return missed or any(
+        c.colliding
+        and (c.shape in shapes or (c.self_pair is not None and not shapes.isdisjoint(c.self_pair)))
+        for c in segment.checks
+    )
 
 
 def _unclean(segment: _Segment, before: Keyframe | None, lag_matters: bool = True) -> str | None:

@@ -36,12 +36,14 @@ FloatArray = NDArray[np.float64]
 class KeyframeCheck:
     """scene_depth : m, deepest non-stance shape inside the scene or an obstacle (0 when
     none); shape : its name. self_depth : m, deepest body pair overlap; hold_error : m,
-    largest distance of a stance effector from its contact placement."""
+    largest distance of a stance effector from its contact placement. self_pair : the
+    names of the two shapes of the deepest body pair overlap (None when none overlap)."""
 
     scene_depth: float
     shape: str | None
     self_depth: float
     hold_error: float
+    self_pair: tuple[str, str] | None = None
 
     @property
     def colliding(self) -> bool:
@@ -98,6 +100,11 @@ class KeyframeChecker:
             (i, o.geometry, str(o.name)) for i, o in enumerate(self.geometry.geometryObjects)
         ]
         self.frame_ids = {limb.name: int(limb.frame_id) for limb in character.limbs}
+        objects = self.geometry.geometryObjects
+        self._pair_names = [
+            (str(objects[p.first].name), str(objects[p.second].name))
+            for p in self.geometry.collisionPairs
+        ]
 
     def check(
         self,
@@ -135,7 +142,7 @@ class KeyframeChecker:
                 continue
             if -d > deepest:
                 deepest, shape = -d, name
-        self_depth = 0.0
+        self_depth, self_pair = 0.0, None
         near = self.broad.near_at(poses, 0.0)
         if near:
             measured = []
@@ -146,9 +153,10 @@ class KeyframeChecker:
                     results = self.geometry_data.distanceResults
                 d = float(results[k].min_distance)
                 measured.append(d)
-                self_depth = max(self_depth, -d)
+                if -d > self_depth:
+                    self_depth, self_pair = -d, self._pair_names[k]
             self.broad.remember_all(near, measured)
-        return KeyframeCheck(deepest, shape, self_depth, hold)
+        return KeyframeCheck(deepest, shape, self_depth, hold, self_pair)
 
     def depths(self, q: FloatArray, limbs: Sequence[str]) -> dict[int, float]:
         """Per shape index of the effectors of ``limbs``, m how deep it is in the scene at

@@ -242,3 +242,26 @@ def test_a_foot_stepping_down_beside_a_riser_crosses_low() -> None:
     checker = KeyframeChecker(character, stairs.collision.bvh)
     top = builder._clearing_top(builder._Targets(character, spec), checker, 0)
     assert top == tuning.CLEARING_HEIGHTS[0]
+
+
+def test_a_swing_is_at_fault_when_its_limb_is_in_the_scene_or_in_another_body_part() -> None:
+    """A higher arc is tried when the swinging limb's shape is the deepest in the scene, or
+    is one of the deepest self-colliding pair (a foot brushing the stance foot); not when the
+    collision is between other parts, nor below the tolerances."""
+    from planner.motion.checker import KeyframeCheck
+
+    feet = frozenset({"r_foot_0", "r_shin_0"})
+    deep = tuning.SELF_PENETRATION_TOLERANCE + 0.002
+
+    def segment(*checks: KeyframeCheck) -> builder._Segment:
+        return builder._Segment([], list(checks), [], np.zeros(1), 0.0)
+
+    brushing = KeyframeCheck(0.0, None, deep, 0.0, ("l_foot_0", "r_foot_0"))
+    elsewhere = KeyframeCheck(0.0, None, deep, 0.0, ("r_thigh_0", "r_hand_0"))
+    shallow = KeyframeCheck(0.0, None, 0.001, 0.0, ("l_foot_0", "r_foot_0"))
+    scraping = KeyframeCheck(tuning.PENETRATION_TOLERANCE + 0.002, "r_shin_0", 0.0, 0.0)
+    assert builder._swing_at_fault(segment(brushing), feet)
+    assert builder._swing_at_fault(segment(scraping), feet)
+    assert not builder._swing_at_fault(segment(elsewhere), feet)
+    assert not builder._swing_at_fault(segment(shallow), feet)
+    assert not builder._swing_at_fault(segment(), feet)
