@@ -216,10 +216,10 @@ def solve_dynamic_com(
         raise ValueError("kinematics: one entry per phase is needed")
     d = settings.degree
     # the cost and trust boxes at ``samples`` per phase, Eq. 1 at each phase's own count
-    full = _Basis(d, settings.samples)
     counts = [settings.phase_samples(float(t)) for t in np.diff(times)]
     layout = _Layout(phases, d, counts)
     bases = {count: _Basis(d, count) for count in {settings.samples, *counts}}
+    full = bases[settings.samples]
     per_phase_basis = [bases[count] for count in counts]
     ends = np.cumsum([0, *counts])
     per_phase = [slice(int(a), int(b)) for a, b in itertools.pairwise(ends)]

@@ -14,6 +14,7 @@ from __future__ import annotations
 import bisect
 import itertools
 import math
+from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -173,28 +174,20 @@ def phase_keyframe_times(t0: float, t1: float, rate: float, breaks: Sequence[flo
     def phase_of(t: float) -> int:
         return min(bisect.bisect_right(ends, t), len(ends) - 1)
 
-    counts: dict[int, int] = {}
-    for t in grid:
-        counts[phase_of(float(t))] = counts.get(phase_of(float(t)), 0) + 1
+    counts = Counter(phase_of(float(t)) for t in grid)
     starts = [-math.inf, *ends]
     for k in range(len(ends)):
         a, b = max(starts[k], t0), min(ends[k], t1)
-        if b <= a or counts.get(k, 0):
+        if b <= a or counts[k]:
             continue
+        middle, reach = 0.5 * (a + b), KEYFRAME_SHIFT * period
         after = int(np.searchsorted(grid, a))  # the first time at or after the phase's start
-        nearer = sorted(
-            (after - 1, after),
-            key=lambda i: abs(grid[min(max(i, 0), len(grid) - 1)] - 0.5 * (a + b)),
-        )
-        for i in nearer:
-            if i <= 0 or i >= len(grid) - 1:
-                continue  # the first and last times stay
+        inner = [i for i in (after - 1, after) if 0 < i < len(grid) - 1]  # the ends stay
+        for i in sorted(inner, key=lambda i: abs(float(grid[i]) - middle)):
             g = float(grid[i])
-            target = min(
-                max(0.5 * (a + b), g - KEYFRAME_SHIFT * period), g + KEYFRAME_SHIFT * period
-            )
+            target = min(max(middle, g - reach), g + reach)
             leaving = phase_of(g)
-            if not a <= target < b or phase_of(target) != k or counts.get(leaving, 0) < 2:
+            if not a <= target < b or phase_of(target) != k or counts[leaving] < 2:
                 continue
             if not 0.5 * period <= target - grid[i - 1] <= 1.5 * period:
                 continue

@@ -422,25 +422,27 @@ def dynamic_com(
     shifts stretched to their COM's travel (:func:`_shift_stretch`). The phases blamed are
     :func:`_blamed` of each infeasible QP's ``trajectory.DynamicOutcome.blame``."""
     n = len(states)
-    used = list(factors) if factors is not None else [levels[0]] * n
-    tries: list[list[float]] = []
-    trial: list[float] | None = used
+    plain: list[list[float]] = []
+    trial: list[float] | None = list(factors) if factors is not None else [levels[0]] * n
     while trial is not None:
-        tries.append(trial)
+        plain.append(trial)
         trial = _slower(trial, 0, n, levels)
-    stretch = _shift_stretch(character, states, speed)
-    plain = len(tries)
-    if max(stretch) > 1.0:
-        tries += [[f * s for f, s in zip(factors, stretch, strict=True)] for factors in tries]
     blamed: set[int] = set()
-    for k, used in enumerate(tries):
-        outcome = _dynamic_window(character, data, states, reference, speed, used, 0, n)
-        found = outcome.com
-        if found is not None and found.valid:
-            return PlanCom(found, used, k >= plain, set())
-        if outcome.blame is not None:
-            blamed |= _blamed(outcome.blame)
-    return PlanCom(None, used, len(tries) > plain, blamed)
+    used = plain[-1]
+    for stretched in (False, True):
+        if stretched:  # past the last level; the stretch is computed only then
+            stretch = _shift_stretch(character, states, speed)
+            if max(stretch) <= 1.0:
+                return PlanCom(None, used, False, blamed)
+        for base in plain:
+            used = [f * s for f, s in zip(base, stretch, strict=True)] if stretched else base
+            outcome = _dynamic_window(character, data, states, reference, speed, used, 0, n)
+            found = outcome.com
+            if found is not None and found.valid:
+                return PlanCom(found, used, stretched, set())
+            if outcome.blame is not None:
+                blamed |= _blamed(outcome.blame)
+    return PlanCom(None, used, True, blamed)
 
 
 def _shift_stretch(
