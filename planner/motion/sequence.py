@@ -534,7 +534,9 @@ def _dynamic_window(
         list(durations[lo:hi]),
         start,
         end,
-        kinematics=plan_kinematics(character, data, states[:hi])[lo:],  # steps down before lo
+        # from the first state (steps down before lo) to the one after the window (the floor
+        # of its last phase)
+        kinematics=plan_kinematics(character, data, states[: hi + 1])[lo:hi],
         reference=reference.curve,
         reference_times=list(reference.phase_times[lo : hi + 1]),
         settings=trajectory.DynamicSettings(sample_spacing=tuning.DYNAMIC_SAMPLE_SPACING),

@@ -425,3 +425,44 @@ def test_keyframe_times_put_a_time_in_a_short_phase_and_keep_the_spacing(
     for k in range(1, len(ends) - 1):
         if lengths[k - 1] >= 2 * period and lengths[k + 1] >= 2 * period:
             assert after[k] >= 1, (k, lengths)
+
+
+def test_a_window_keeps_to_the_kinematics_of_the_whole_plan(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A window's QP [lo, hi) gets the same kinematic constraints as those phases have in the
+    whole plan: the step-down caps from the states before it and the floor of its last phase
+    from the state after it."""
+    from planner.motion import sequence
+
+    ctx, flat = _hexapod_steps()
+    character, data = ctx.character, ctx.data
+    reference, _ = timed_com(character, data, flat, Timing(), swing_durations(character, flat))
+    earlier = dynamic_com(character, data, flat, reference).curve
+    assert earlier is not None
+    lo, hi = 2, 5
+    # the state after the window crouched 10 cm: the floor of the window's last phase is
+    # below its COM, not its own
+    q = np.array(flat[hi].q)
+    q[2] -= 0.1
+    states = [*flat[:hi], ContactState(q, flat[hi].contacts), *flat[hi + 1 :]]
+    whole = sequence.plan_kinematics(character, data, states)
+    seen: list[object] = []
+    real = trajectory.solve_dynamic_com
+
+    def recording(*args: object, **kwargs: object) -> trajectory.DynamicOutcome:
+        seen.append(kwargs["kinematics"])
+        return real(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(sequence.trajectory, "solve_dynamic_com", recording)
+    factors = [1.0] * len(states)
+    segments = earlier.curve.segments
+    sequence._dynamic_window(character, data, states, reference, 1.0, factors, lo, hi, segments)
+    (window,) = seen
+    assert isinstance(window, list) and len(window) == hi - lo
+    for got, expected in zip(window, whole[lo:hi], strict=True):
+        assert got is not None and expected is not None
+        np.testing.assert_array_equal(got.A, expected.A)
+        np.testing.assert_array_equal(got.b, expected.b)
+    assert whole[hi - 1] is not None and whole[hi - 2] is not None
+    assert whole[hi - 1].b[-1] > whole[hi - 2].b[-1] + 0.05  # that floor is lower
