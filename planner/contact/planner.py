@@ -437,6 +437,11 @@ def plan_contact_motion(
             resume_gained = gained
         elif gained:
             resume_gained = True  # a new best walk may be walked on in turn
+        if sequence.stats.get("blocked"):
+            # stuck short of the guide's end with every foothold ahead out of its reach: a
+            # walk resumed from behind that point, along the same guide, came back to it
+            # and stuck there again on every rubble_humanoid seed measured; a new guide next
+            resume_gained = False
         if gained:
             best = (sequence, poses, path)
     assert best is not None

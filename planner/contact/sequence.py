@@ -399,8 +399,10 @@ def contact_sequence(
     hand for a handrail); a walking limb the goal does not have is released at the end.
 
     SOLVED when the body has reached the end of the guide and every goal contact is made
-    (within ``goal_tolerance``); APPROXIMATE with the states found so far when stuck; TIMEOUT
-    (with the partial states) when ``until`` fires.
+    (within ``goal_tolerance``); APPROXIMATE with the states found so far when stuck
+    (``stats["blocked"]`` 1 when stuck short of the guide's end, where no foothold up to the
+    furthest lookahead could be stepped to); TIMEOUT (with the partial states) when
+    ``until`` fires.
 
     Re-planning (``resume``): the start stands part-way along the guide, and the walk goes
     on from the guide sample nearest its root; no contact of a limb is made within
@@ -707,6 +709,9 @@ def contact_sequence(
             continue
         stuck += 1
         if stuck > p.max_stuck:
+            # stuck short of the guide's end: no foothold up to the furthest lookahead could
+            # be stepped to from here (``stats["blocked"]``)
+            stats["blocked"] = int(not at_end)
             far = ", ".join(f"{x} {gaps[x]:.2f} m" for x in candidates) or "none"
             return stalled(
                 f"stuck at {s:.2f} m of {guide.length:.2f} m; limbs off their footholds: {far}"

@@ -396,13 +396,16 @@ def dynamic_durations(
 class PlanCom:
     """What :func:`dynamic_com` found: ``curve`` (None when no curve passes), the
     ``factors`` on :func:`dynamic_durations` per phase (used, or the last tried),
-    ``stretched`` True when they include the shifts' stretch (:func:`_shift_stretch`), and
-    the phases ``blamed`` by the certificates of the QPs found infeasible."""
+    ``stretched`` True when they include the shifts' stretch (:func:`_shift_stretch`; with
+    no curve: when the stretched levels were tried too), the phases ``blamed`` by the
+    certificates of the QPs found infeasible, and the ``plain`` levels tried without the
+    stretch (each plain try's slowest factor), in order."""
 
     curve: trajectory.DynamicCom | None
     factors: list[float]
     stretched: bool
     blamed: set[int]
+    plain: tuple[float, ...] = ()
 
 
 def dynamic_com(
@@ -417,10 +420,13 @@ def dynamic_com(
     """A COM through ``states`` whose wrench lies in each phase's contact cone (Eq. 1) at
     the collocation times of ``trajectory.dynamic_com``, near 2PAC's ``reference`` curve,
     phase j lasting :func:`dynamic_durations` times ``factors[j]`` (default: the first of
-    ``levels`` for every phase). When no curve passes, every phase is slowed to the next of
-    ``levels`` and the QP solved again; past the last, through ``levels`` again with the
-    shifts stretched to their COM's travel (:func:`_shift_stretch`). The phases blamed are
-    :func:`_blamed` of each infeasible QP's ``trajectory.DynamicOutcome.blame``."""
+    ``levels`` for every phase). When no curve passes, the QP is solved again through
+    ``levels`` with the weight shifts stretched to their COM's travel
+    (:func:`_shift_stretch`), then with every phase slowed to each later level. The
+    stretched shifts come before the slower plain levels: on rubble, where a double
+    support moves the COM 0.4 m, a plan slowed as a whole still failed (three QPs lost) and
+    one with its shifts stretched passed. The phases blamed are :func:`_blamed` of each
+    infeasible QP's ``trajectory.DynamicOutcome.blame``."""
     n = len(states)
     plain: list[list[float]] = []
     trial: list[float] | None = list(factors) if factors is not None else [levels[0]] * n
@@ -428,21 +434,41 @@ def dynamic_com(
         plain.append(trial)
         trial = _slower(trial, 0, n, levels)
     blamed: set[int] = set()
-    used = plain[-1]
-    for stretched in (False, True):
-        if stretched:  # past the last level; the stretch is computed only then
-            stretch = _shift_stretch(character, states, speed)
-            if max(stretch) <= 1.0:
-                return PlanCom(None, used, False, blamed)
+    tried: list[float] = []  # the plain levels tried
+
+    def attempt(used: list[float]) -> trajectory.DynamicCom | None:
+        outcome = _dynamic_window(character, data, states, reference, speed, used, 0, n)
+        if outcome.com is not None and outcome.com.valid:
+            return outcome.com
+        if outcome.blame is not None:
+            blamed.update(_blamed(outcome.blame))
+        return None
+
+    tried.append(max(plain[0]))
+    found = attempt(plain[0])
+    if found is not None:
+        return PlanCom(found, plain[0], False, set(), tuple(tried))
+    stretch = _shift_stretch(character, states, speed)  # computed only once a level fails
+    used = plain[0]
+    if max(stretch) > 1.0:
         for base in plain:
-            used = [f * s for f, s in zip(base, stretch, strict=True)] if stretched else base
-            outcome = _dynamic_window(character, data, states, reference, speed, used, 0, n)
-            found = outcome.com
-            if found is not None and found.valid:
-                return PlanCom(found, used, stretched, set())
-            if outcome.blame is not None:
-                blamed |= _blamed(outcome.blame)
-    return PlanCom(None, used, True, blamed)
+            used = [f * s for f, s in zip(base, stretch, strict=True)]
+            found = attempt(used)
+            if found is not None:
+                return PlanCom(found, used, True, set(), tuple(tried))
+    for base in plain[1:]:
+        tried.append(max(base))
+        found = attempt(base)
+        if found is not None:
+            return PlanCom(found, base, False, set(), tuple(tried))
+        used = base
+    return PlanCom(None, used, max(stretch) > 1.0, blamed, tuple(tried))
+
+
+def _levels_text(levels: Sequence[float]) -> str:
+    """``levels`` as words: "0.75", "0.75 and 1", "0.75, 1 and 1.5"."""
+    words = [f"{x:g}" for x in levels]
+    return words[0] if len(words) == 1 else ", ".join(words[:-1]) + " and " + words[-1]
 
 
 def _shift_stretch(
@@ -1000,9 +1026,9 @@ def sequence_motion(
         dynamic, factors_tried, blamed = whole.curve, whole.factors, whole.blamed
         if whole.stretched:
             trials.append(
-                f"no curve passes Eq. 1 up to {max(levels):g} times the brisk durations: tried "
-                "again with the weight shifts lengthened to move the COM between their states' "
-                f"at {tuning.DYNAMIC_SHIFT_SPEED:g} m/s"
+                f"no curve passes Eq. 1 at {_levels_text(whole.plain)} times the brisk "
+                "durations: tried again with the weight shifts lengthened to move the COM "
+                f"between their states' at {tuning.DYNAMIC_SHIFT_SPEED:g} m/s"
             )
         if dynamic is None:
             dynamic_refused = (

@@ -16,11 +16,12 @@ from planner.contact.planner import (
     DETOUR_RADIUS,
     RESUME_BACK_M,
     Endpoint,
+    PlanOptions,
     _detour_checker,
     plan_contact_motion,
 )
 from planner.contact.reachability import ReachabilityChecker
-from planner.contact.sequence import resume_index
+from planner.contact.sequence import SequenceParams, resume_index
 from planner.contact.state import ContactState
 from planner.result import PlanResult, PlanStatus
 from planner.scene.builtin import GAPS_HEIGHTS, gaps_platform_ranges
@@ -62,7 +63,11 @@ class Walk(NamedTuple):
 
 
 def _plan_recording_walks(
-    scene_id: str, start: FloatArray, goal: FloatArray, budget_s: float
+    scene_id: str,
+    start: FloatArray,
+    goal: FloatArray,
+    budget_s: float,
+    options: PlanOptions | None = None,
 ) -> tuple[PlanResult[Any], list[Walk]]:
     """The humanoid's plan from ``start`` to ``goal`` (stand_at points (3,)) at seed 1, and
     the real contact walks it made, in order."""
@@ -86,32 +91,33 @@ def _plan_recording_walks(
             rng=np.random.default_rng(1),
             time_budget_s=budget_s,
             cap_s=600.0,
+            options=options,
         )
     return result, walks
 
 
 def test_a_stalled_walk_is_walked_on_from_before_where_it_stalled() -> None:
-    ranges = gaps_platform_ranges()
-    middle = [(x0 + x1) / 2 for x0, x1 in ranges]
-    # the humanoid cannot step across the first gap at this seed: its walks stall there
-    result, walks = _plan_recording_walks(
-        "gaps",
-        np.array([middle[0], 0.0, GAPS_HEIGHTS[0]]),
-        np.array([middle[1], 0.0, GAPS_HEIGHTS[1]]),
-        10.0,
+    """Climbing the cube wall, the first walk comes back to the same contacts among the
+    cubes (it is not stuck for want of a foothold): the next walk goes on along the same
+    guide from before where it stalled, its states up to there kept."""
+    # the climbing wall scenario's plan (tests/scenarios/plans/climbing_wall_humanoid.json)
+    options = PlanOptions(
+        limbs=("left_hand", "right_hand"), sequence=SequenceParams(max_states=400)
     )
-    assert result.status is not PlanStatus.SOLVED
+    result, walks = _plan_recording_walks(
+        "climbing_wall", np.array([0.5, 0.0, 0.0]), np.array([3.3, 0.0, 1.4]), 60.0, options
+    )
     assert len(walks) >= 2
     first, _, resumed, stalled = walks[0]
     assert not resumed and stalled.status is PlanStatus.APPROXIMATE
-    assert not stalled.stats.get("stranded")
+    assert not stalled.stats.get("stranded") and not stalled.stats.get("blocked")
     start, _, resumed, _ = walks[1]
     assert resumed
     before = stalled.value
     assert before is not None
     # the retry starts from one of the stalled walk's states, every leg down, that far back
     k = next(j for j, state in enumerate(before) if state is start)
-    assert len(start.contacts) == len(first.contacts)
+    assert len(start.contacts) >= len(first.contacts)  # every leg down
     assert float(start.q[0]) <= max(float(s.q[0]) for s in before) - RESUME_BACK_M + 0.05
     # whatever attempt won, the answer is one contact change at a time from the start
     assert result.value is not None
@@ -123,6 +129,27 @@ def test_a_stalled_walk_is_walked_on_from_before_where_it_stalled() -> None:
     # a resumed answer keeps the stalled walk's states before the point it resumed from
     kept = min(int(result.stats.get("resumed_at", 0)), k)
     assert all(a is b for a, b in zip(answer[:kept], before[:kept], strict=True))
+
+
+def test_a_walk_blocked_short_of_its_guide_end_starts_over_on_a_new_guide() -> None:
+    """The humanoid cannot step across the first gap at this seed: its first walk is stuck
+    there, short of its guide's end, with no foothold within reach ahead
+    (``stats["blocked"]``). Walking on along the same guide would come back to the gap, so
+    the next walk starts over from the start."""
+    ranges = gaps_platform_ranges()
+    middle = [(x0 + x1) / 2 for x0, x1 in ranges]
+    result, walks = _plan_recording_walks(
+        "gaps",
+        np.array([middle[0], 0.0, GAPS_HEIGHTS[0]]),
+        np.array([middle[1], 0.0, GAPS_HEIGHTS[1]]),
+        10.0,
+    )
+    assert result.status is not PlanStatus.SOLVED
+    assert len(walks) >= 2
+    first, _, resumed, stalled = walks[0]
+    assert not resumed and stalled.status is PlanStatus.APPROXIMATE
+    assert stalled.stats.get("blocked") == 1, stalled.message
+    assert not walks[1].resumed and walks[1].start is first
 
 
 def test_a_walk_started_over_after_stalls_follows_a_guide_round_them() -> None:

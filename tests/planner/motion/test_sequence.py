@@ -466,3 +466,55 @@ def test_a_window_keeps_to_the_kinematics_of_the_whole_plan(
         np.testing.assert_array_equal(got.b, expected.b)
     assert whole[hi - 1] is not None and whole[hi - 2] is not None
     assert whole[hi - 1].b[-1] > whole[hi - 2].b[-1] + 0.05  # that floor is lower
+
+
+@pytest.mark.parametrize(
+    ("stretch_by", "passing_at", "order"),
+    [
+        # the stretched levels right after the first plain one
+        (1.2, (1, True), [(0, False), (0, True), (1, True)]),
+        # then the plain levels left
+        (1.2, (2, False), [(0, False), (0, True), (1, True), (2, True), (1, False), (2, False)]),
+        # nothing to stretch: the plain levels only
+        (1.0, (1, False), [(0, False), (1, False)]),
+        (1.0, None, [(0, False), (1, False), (2, False)]),
+    ],
+)
+def test_the_stretched_shifts_come_before_the_slower_plain_levels(
+    monkeypatch: pytest.MonkeyPatch,
+    stretch_by: float,
+    passing_at: tuple[int, bool] | None,
+    order: list[tuple[int, bool]],
+) -> None:
+    """When the first plain level fails, the QP is tried with the weight shifts stretched at
+    each level, then with the whole plan slowed to the later levels; the answer says which
+    plain levels were tried and whether its factors hold the stretch. The QP stands in for
+    the order alone, passing at one (level, stretched) pair (the rubble plans where this
+    happens are measured by ``bench/motion.py``)."""
+    from planner.motion import sequence
+
+    ctx, states = _hexapod_steps()
+    character, data = ctx.character, ctx.data
+    levels = tuning.DYNAMIC_SLOWDOWNS
+    stretch = [1.0] * len(states)
+    stretch[1] = stretch_by
+    reference, _ = timed_com(character, data, states, Timing(), swing_durations(character, states))
+    passing = dynamic_com(character, data, states, reference).curve
+    assert passing is not None
+    tried: list[tuple[int, bool]] = []
+
+    def window(*args: object) -> trajectory.DynamicOutcome:
+        factors = list(args[5])  # type: ignore[call-overload]
+        key = (levels.index(factors[0]), factors[1] > factors[0])
+        tried.append(key)
+        return trajectory.DynamicOutcome(passing if key == passing_at else None, None)
+
+    monkeypatch.setattr(sequence, "_shift_stretch", lambda *args: stretch)
+    monkeypatch.setattr(sequence, "_dynamic_window", window)
+    found = dynamic_com(character, data, states, reference)
+    assert tried == order
+    assert found.plain == tuple(levels[k] for k, stretched in order if not stretched)
+    if passing_at is None:
+        assert found.curve is None and not found.stretched
+    else:
+        assert found.curve is passing and found.stretched == passing_at[1]
