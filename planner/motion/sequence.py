@@ -398,14 +398,16 @@ class PlanCom:
     ``factors`` on :func:`dynamic_durations` per phase (used, or the last tried),
     ``stretched`` True when they include the shifts' stretch (:func:`_shift_stretch`; with
     no curve: when the stretched levels were tried too), the phases ``blamed`` by the
-    certificates of the QPs found infeasible, and the ``plain`` levels tried without the
-    stretch (each plain try's slowest factor), in order."""
+    certificates of the QPs found infeasible, the ``plain`` levels tried without the
+    stretch (each plain try's slowest factor), in order, and whether the stretched levels
+    were tried (``stretch_tried``)."""
 
     curve: trajectory.DynamicCom | None
     factors: list[float]
     stretched: bool
     blamed: set[int]
     plain: tuple[float, ...] = ()
+    stretch_tried: bool = False
 
 
 def dynamic_com(
@@ -455,14 +457,15 @@ def dynamic_com(
             used = [f * s for f, s in zip(base, stretch, strict=True)]
             found = attempt(used)
             if found is not None:
-                return PlanCom(found, used, True, set(), tuple(tried))
+                return PlanCom(found, used, True, set(), tuple(tried), True)
+    stretch_tried = max(stretch) > 1.0
     for base in plain[1:]:
         tried.append(max(base))
         found = attempt(base)
         if found is not None:
-            return PlanCom(found, base, False, set(), tuple(tried))
+            return PlanCom(found, base, False, set(), tuple(tried), stretch_tried)
         used = base
-    return PlanCom(None, used, max(stretch) > 1.0, blamed, tuple(tried))
+    return PlanCom(None, used, stretch_tried, blamed, tuple(tried), stretch_tried)
 
 
 def _levels_text(levels: Sequence[float]) -> str:
@@ -1029,6 +1032,13 @@ def sequence_motion(
                 f"no curve passes Eq. 1 at {_levels_text(whole.plain)} times the brisk "
                 "durations: tried again with the weight shifts lengthened to move the COM "
                 f"between their states' at {tuning.DYNAMIC_SHIFT_SPEED:g} m/s"
+            )
+        elif dynamic is not None and len(whole.plain) > 1:
+            trials.append(
+                f"no curve passes Eq. 1 at {_levels_text(whole.plain[:-1])} times the brisk "
+                "durations"
+                + (", nor with the weight shifts stretched" if whole.stretch_tried else "")
+                + f": the whole plan slowed to {whole.plain[-1]:g}"
             )
         if dynamic is None:
             dynamic_refused = (

@@ -516,5 +516,24 @@ def test_the_stretched_shifts_come_before_the_slower_plain_levels(
     assert found.plain == tuple(levels[k] for k, stretched in order if not stretched)
     if passing_at is None:
         assert found.curve is None and not found.stretched
+        return
+    assert found.curve is passing and found.stretched == passing_at[1]
+    # the report says why the plan's shifts were stretched or the whole plan slowed
+    motion = sequence_motion(
+        character, data, ctx.scene.collision.bvh, states, timing=Timing(overlap=False)
+    )
+    trials = [str(t) for t in motion.report["dynamic_trials"]]
+    if passing_at == (1, False):  # nothing to stretch
+        assert trials[0] == (
+            f"no curve passes Eq. 1 at {levels[0]:g} times the brisk durations: the whole "
+            f"plan slowed to {levels[1]:g}"
+        )
+    elif passing_at[1]:
+        assert trials[0].startswith(f"no curve passes Eq. 1 at {levels[0]:g} times the brisk")
+        assert "weight shifts lengthened" in trials[0]
     else:
-        assert found.curve is passing and found.stretched == passing_at[1]
+        assert trials[0] == (
+            f"no curve passes Eq. 1 at {levels[0]:g} and {levels[1]:g} times the brisk "
+            f"durations, nor with the weight shifts stretched: the whole plan slowed to "
+            f"{levels[2]:g}"
+        )
