@@ -1,6 +1,7 @@
 """A walk that stalls is retried from a little before where it stalled, its states up to
 there kept (``planner.contact.planner``, ``sequence.resume_index``), instead of walking the
-whole guide again."""
+whole guide again; one stuck short of its guide's end with no foothold in reach is not (it
+would come back to the same place): the next walk starts over on a new guide."""
 
 from __future__ import annotations
 
