@@ -396,11 +396,10 @@ def dynamic_durations(
 class PlanCom:
     """What :func:`dynamic_com` found: ``curve`` (None when no curve passes), the
     ``factors`` on :func:`dynamic_durations` per phase (used, or the last tried),
-    ``stretched`` True when they include the shifts' stretch (:func:`_shift_stretch`; with
-    no curve: when the stretched levels were tried too), the phases ``blamed`` by the
-    certificates of the QPs found infeasible, the ``plain`` levels tried without the
-    stretch (each plain try's slowest factor), in order, and whether the stretched levels
-    were tried (``stretch_tried``)."""
+    ``stretched`` True when they include the shifts' stretch (:func:`_shift_stretch`), the
+    phases ``blamed`` by the certificates of the QPs found infeasible, the ``plain`` levels
+    tried without the stretch (each plain try's slowest factor), in order, and whether the
+    stretched levels were tried (``stretch_tried``)."""
 
     curve: trajectory.DynamicCom | None
     factors: list[float]
@@ -408,6 +407,29 @@ class PlanCom:
     blamed: set[int]
     plain: tuple[float, ...] = ()
     stretch_tried: bool = False
+
+    def slowdown_note(self) -> str | None:
+        """Why the durations are not the brisk ones (a ``dynamic_trials`` entry), or None."""
+        if self.stretched or (self.curve is None and self.stretch_tried):
+            return (
+                f"no curve passes Eq. 1 at {_levels_text(self.plain)} times the brisk "
+                "durations: tried again with the weight shifts lengthened to move the COM "
+                f"between their states' at {tuning.DYNAMIC_SHIFT_SPEED:g} m/s"
+            )
+        if self.curve is not None and len(self.plain) > 1:
+            return (
+                f"no curve passes Eq. 1 at {_levels_text(self.plain[:-1])} times the brisk "
+                "durations"
+                + (", nor with the weight shifts stretched" if self.stretch_tried else "")
+                + f": the whole plan slowed to {self.plain[-1]:g}"
+            )
+        return None
+
+    def refusal(self) -> str:
+        """Why no curve was kept (``dynamic_refused``), when ``curve`` is None."""
+        return f"no curve passes Eq. 1 up to {max(self.plain):g} times the brisk durations" + (
+            ", the weight shifts lengthened or not" if self.stretch_tried else ""
+        )
 
 
 def dynamic_com(
@@ -451,21 +473,20 @@ def dynamic_com(
     if found is not None:
         return PlanCom(found, plain[0], False, set(), tuple(tried))
     stretch = _shift_stretch(character, states, speed)  # computed only once a level fails
-    used = plain[0]
-    if max(stretch) > 1.0:
-        for base in plain:
-            used = [f * s for f, s in zip(base, stretch, strict=True)]
-            found = attempt(used)
-            if found is not None:
-                return PlanCom(found, used, True, set(), tuple(tried), True)
     stretch_tried = max(stretch) > 1.0
+    used = plain[0]
+    for base in plain if stretch_tried else []:
+        used = [f * s for f, s in zip(base, stretch, strict=True)]
+        found = attempt(used)
+        if found is not None:
+            return PlanCom(found, used, True, set(), tuple(tried), True)
     for base in plain[1:]:
         tried.append(max(base))
         found = attempt(base)
         if found is not None:
             return PlanCom(found, base, False, set(), tuple(tried), stretch_tried)
         used = base
-    return PlanCom(None, used, stretch_tried, blamed, tuple(tried), stretch_tried)
+    return PlanCom(None, used, False, blamed, tuple(tried), stretch_tried)
 
 
 def _levels_text(levels: Sequence[float]) -> str:
@@ -1027,24 +1048,11 @@ def sequence_motion(
     if n >= 2 and built is None:
         whole = dynamic_com(character, data, states, com_trajectory, speed, None, levels)
         dynamic, factors_tried, blamed = whole.curve, whole.factors, whole.blamed
-        if whole.stretched:
-            trials.append(
-                f"no curve passes Eq. 1 at {_levels_text(whole.plain)} times the brisk "
-                "durations: tried again with the weight shifts lengthened to move the COM "
-                f"between their states' at {tuning.DYNAMIC_SHIFT_SPEED:g} m/s"
-            )
-        elif dynamic is not None and len(whole.plain) > 1:
-            trials.append(
-                f"no curve passes Eq. 1 at {_levels_text(whole.plain[:-1])} times the brisk "
-                "durations"
-                + (", nor with the weight shifts stretched" if whole.stretch_tried else "")
-                + f": the whole plan slowed to {whole.plain[-1]:g}"
-            )
+        note = whole.slowdown_note()
+        if note is not None:
+            trials.append(note)
         if dynamic is None:
-            dynamic_refused = (
-                f"no curve passes Eq. 1 up to {max(levels):g} times the brisk durations"
-                + (", the weight shifts lengthened or not" if whole.stretched else "")
-            )
+            dynamic_refused = whole.refusal()
             trials.append(dynamic_refused)
             # the phases its infeasibility certificate blames stop at rest, the dynamic curve
             # found between them (a fallback per window)
