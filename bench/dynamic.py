@@ -9,12 +9,15 @@ call again, median of ``--repeat`` runs, two ways in the same run:
 - old: every inequality row in the QP from the start, Clarabel at its default tolerances
   (1e-8) with iterative refinement, 12 collocation times in every phase (what
   ``dynamic_com`` did before ``lazy_rows`` and ``sample_spacing``);
+- whole: as the plan calls it but every round a round of the whole QP
+  (``local_repair=False``: what ``dynamic_com`` did before the repair windows);
 - new: as the plan calls it (rows on the curve alone added when needed, tolerances
-  ``SOLVER_TOLERANCE``, refinement ``SOLVER_REFINEMENT``, the plan's sample spacing).
+  ``SOLVER_TOLERANCE``, refinement ``SOLVER_REFINEMENT``, the plan's sample spacing, a few
+  failing phases solved again in windows).
 
-Prints per call the QP size, both medians, the speed-up and the largest difference between
-the control points of the two curves (m), then per plan the sum over its calls (the plan's
-dynamic COM stage). Prints, asserts nothing.
+Prints per call the QP size, the three medians, the speed-ups of new over old and over whole,
+and the largest difference between the control points of the old and new curves (m), then
+per plan the sums over its calls (the plan's dynamic COM stage). Prints, asserts nothing.
 """
 
 from __future__ import annotations
@@ -122,14 +125,18 @@ def control_points(result: trajectory.DynamicCom | None) -> np.ndarray | None:
 
 def bench_scenario(name: str, repeat: int) -> None:
     calls = record_calls(name)
-    total_old = total_new = 0.0
+    total_old = total_whole = total_new = 0.0
     print(f"{name}: {len(calls)} dynamic_com calls")
     print(
-        f"{'call':>4} {'phases':>6} {'old ms':>9} {'new ms':>9} {'x':>6} {'max diff m':>11} answer"
+        f"{'call':>4} {'phases':>6} {'old ms':>9} {'whole ms':>9} {'new ms':>9} {'x old':>6} "
+        f"{'x whole':>7} {'max diff m':>11} answer"
     )
     for i, (args, kwargs) in enumerate(calls):
         base = kwargs.get("settings") or trajectory.DynamicSettings()
-        every_row = dataclasses.replace(base, lazy_rows=False, sample_spacing=0.0)
+        every_row = dataclasses.replace(
+            base, lazy_rows=False, sample_spacing=0.0, local_repair=False
+        )
+        whole_rounds = dataclasses.replace(base, local_repair=False)
 
         def run_old(
             a: tuple[Any, ...] = args, k: dict[str, Any] = kwargs, s: Any = every_row
@@ -137,12 +144,19 @@ def bench_scenario(name: str, repeat: int) -> None:
             with old_way():
                 return trajectory.dynamic_com(*a, **{**k, "settings": s})
 
+        def run_whole(
+            a: tuple[Any, ...] = args, k: dict[str, Any] = kwargs, s: Any = whole_rounds
+        ) -> Any:
+            return trajectory.dynamic_com(*a, **{**k, "settings": s})
+
         def run_new(a: tuple[Any, ...] = args, k: dict[str, Any] = kwargs) -> Any:
             return trajectory.dynamic_com(*a, **k)
 
         t_old, r_old = timed(run_old, repeat)
+        t_whole, _ = timed(run_whole, repeat)
         t_new, r_new = timed(run_new, repeat)
         total_old += t_old
+        total_whole += t_whole
         total_new += t_new
         p_old, p_new = control_points(r_old), control_points(r_new)
         if p_old is None or p_new is None:
@@ -153,13 +167,14 @@ def bench_scenario(name: str, repeat: int) -> None:
             same = "same" if r_old.valid == r_new.valid else "DIFFERENT (valid)"
             same += f", valid {r_new.valid}, rounds {r_old.iterations}/{r_new.iterations}"
         print(
-            f"{i:>4} {len(args[0]):>6} {t_old * 1e3:>9.1f} {t_new * 1e3:>9.1f} "
-            f"{t_old / t_new:>6.1f} {diff:>11} {same}"
+            f"{i:>4} {len(args[0]):>6} {t_old * 1e3:>9.1f} {t_whole * 1e3:>9.1f} "
+            f"{t_new * 1e3:>9.1f} {t_old / t_new:>6.1f} {t_whole / t_new:>7.2f} {diff:>11} {same}"
         )
     if calls:
         print(
             f"{name}: dynamic COM stage (sum of the calls' medians) old {total_old:.3f} s, "
-            f"new {total_new:.3f} s, x{total_old / total_new:.1f}\n"
+            f"whole rounds {total_whole:.3f} s, new {total_new:.3f} s, "
+            f"x{total_old / total_new:.1f} over old, x{total_whole / total_new:.2f} over whole\n"
         )
 
 

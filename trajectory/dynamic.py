@@ -24,7 +24,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, ParamSpec
 
 import clarabel
@@ -34,6 +34,7 @@ from scipy import sparse
 
 from trajectory._types import GRAVITY, BoolArray, FloatArray, as_float_array
 from trajectory.bezier import BezierCurve, PiecewiseBezier, bernstein
+from trajectory.com import validate_dynamics
 from trajectory.contacts import ContactPhase
 from trajectory.equilibrium import equilibrium_margin
 from trajectory.polytope import Halfspaces
@@ -62,6 +63,9 @@ class DynamicSettings:
     lazy_rows : the inequality rows on the curve alone (trust box, kinematics) enter the QP
         only once an answer breaks one of them (the same optimum, a smaller QP); False puts
         them all in from the start (for comparisons).
+    local_repair : a round's answer failing in a few phases has windows around them solved
+        again, the rest of the curve kept (``REPAIR_RADIUS``, ``REPAIR_MAX_SHARE``), before
+        another round of the whole QP; False: whole rounds only (for comparisons).
     """
 
     degree: int = 7
@@ -74,6 +78,7 @@ class DynamicSettings:
     vertical_tracking_weight: float = 1e4
     force_weight: float = 1e-2
     lazy_rows: bool = True
+    local_repair: bool = True
 
     def __post_init__(self) -> None:
         if self.degree < 5:
@@ -201,8 +206,50 @@ def solve_dynamic_com(
     the same degree) the curve joins C2 instead of starting / ending at rest: it starts where
     ``before`` ends (``start`` must be that point) and ends where ``after`` starts (``end``
     likewise); its times still start at 0 (a window of a longer curve, shifted by the
-    caller)."""
-    settings = settings or DynamicSettings()
+    caller).
+
+    Where a round's answer fails Eq. 1 (or breaks a row left out) in a few phases only, those
+    phases and ``REPAIR_RADIUS`` phases on each side are solved again as windows, the curve
+    outside them kept and joined C2, linearised about the round's answer
+    (``DynamicSettings.local_repair``): a few small QPs instead of another round of the whole
+    one. When a window finds no valid curve, the next round is the whole QP's, as without."""
+    return _solve_rounds(
+        phases,
+        durations,
+        start,
+        end,
+        kinematics=kinematics,
+        reference=reference,
+        reference_times=reference_times,
+        settings=settings or DynamicSettings(),
+        before=before,
+        after=after,
+    )
+
+
+def _solve_rounds(
+    phases: Sequence[ContactPhase],
+    durations: Sequence[float],
+    start: FloatArray,
+    end: FloatArray,
+    *,
+    kinematics: Sequence[Halfspaces | None] | None,
+    reference: PiecewiseBezier | None,
+    reference_times: Sequence[float] | None,
+    settings: DynamicSettings,
+    before: BezierCurve | None,
+    after: BezierCurve | None,
+    first: Sequence[tuple[FloatArray, FloatArray]] | None = None,
+    repair: bool = True,
+    kept_ends: tuple[bool, bool] = (False, False),
+) -> DynamicOutcome:
+    """:func:`solve_dynamic_com` (same arguments), its first round linearised about
+    ``first`` (per phase, the positions and accelerations at its collocation times) when
+    given, else about the reference at rest; ``repair``: whether a round's failing phases
+    may be solved again as windows. ``kept_ends``: whether the first sample of the first
+    phase (the last of the last) is that of a curve kept around a repair window, which
+    passes Eq. 1 there already: the C2 join fixes it, and its weights keep no margin (the
+    linearisation is exact at the point it is taken about, the margin may not be)."""
     phases = list(phases)
     if not phases:
         raise ValueError("phases: at least one contact phase is needed")
@@ -242,22 +289,39 @@ def solve_dynamic_com(
         rt = np.asarray(reference_times, dtype=np.float64)
     boxes = [guess(j, full.u) for j in range(len(phases))]
     targets = None if reference is None else boxes
-    lin = [
-        (boxes[j] if counts[j] == full.u.size else guess(j, b.u), np.zeros((counts[j], 3)))
-        for j, b in enumerate(per_phase_basis)
-    ]
+    lin = (
+        list(first)
+        if first is not None
+        else [
+            (boxes[j] if counts[j] == full.u.size else guess(j, b.u), np.zeros((counts[j], 3)))
+            for j, b in enumerate(per_phase_basis)
+        ]
+    )
     durations_arr = np.diff(times)
     head = _join_points(before, float(durations_arr[0]), d, c0, at_end=False)
     tail = _join_points(after, float(durations_arr[-1]), d, c1, at_end=True)
     eq_rows, eq_rhs = _fixed_rows(layout, times, head, tail, d)
     margin_rows, margin_rhs = _margin_rows(layout, settings.margin)
+    last = len(phases) - 1
+    for kept, (j, k) in zip(kept_ends, ((0, 0), (last, counts[last] - 1)), strict=True):
+        if kept:  # that sample's weights: no margin
+            first_weight = layout.weights_at[j][k] - layout.n_curve
+            margin_rhs[first_weight : first_weight + phases[j].wrench_generators.shape[0]] = 0.0
     curve_rows = _CurveRows(layout, d, kins, boxes)
     working = np.full(curve_rows.size, not settings.lazy_rows)
     cost_p, cost_q = _cost(layout, times, full, settings, targets)
     result: DynamicCom | None = None
+    # a round's failing phases solved again as windows (at most once)
+    repair_left = (
+        repair
+        and settings.local_repair
+        and len(phases) > 2 * REPAIR_RADIUS + 1
+        and layout.n >= REPAIR_MIN_VARIABLES
+    )
     for iteration in range(1, settings.iterations + 1):
         w_rows, w_rhs = _wrench_rows(layout, phases, times, per_phase_basis, lin)
-        x, working, certificate = _solve_lazy(
+        last_round = iteration == settings.iterations
+        x, working, certificate, complete = _solve_lazy(
             layout.n,
             cost_p,
             cost_q,
@@ -267,6 +331,7 @@ def solve_dynamic_com(
             margin_rows,
             margin_rhs,
             working,
+            settle=last_round,
         )
         if x is None:
             blame = None
@@ -281,15 +346,142 @@ def solve_dynamic_com(
         # by phase: a sample on a break is the later segment's either way)
         positions, accelerations = curve(all_times), curve.derivative(2)(all_times)
         lin = [(positions[k], accelerations[k]) for k in per_phase]
-        valid = all(
-            equilibrium_margin(phase, c, a).feasible
-            for phase, (cs, accs) in zip(phases, lin, strict=True)
-            for c, a in zip(cs, accs, strict=True)
-        )
+        if repair_left:
+            broken = [] if complete else curve_rows.broken_phases(x)
+            failing = _failing_phases(phases, lin, broken)
+            valid = complete and failing == []
+            if failing:
+                windows = _repair_windows(failing, len(phases))
+                repair_left = False  # once: where windows fail, so may they again
+                rounds_left = max(1, min(REPAIR_ROUNDS, settings.iterations - iteration))
+                repaired = _repaired(
+                    curve,
+                    windows,
+                    phases,
+                    durations_arr,
+                    (c0, c1),
+                    (before, after),
+                    kins,
+                    reference,
+                    rt if reference is not None else None,
+                    replace(settings, iterations=rounds_left),
+                    lin,
+                )
+                if repaired is not None:
+                    result = DynamicCom(repaired[0], times, iteration + repaired[1], True)
+                    break
+        else:
+            valid = complete and all(
+                _passes(phase, sample) for phase, sample in zip(phases, lin, strict=True)
+            )
+        if not complete:
+            # an answer breaking rows left out (trust box, kinematics) is only the next
+            # round's linearisation point, its broken rows now in the QP
+            continue
         result = DynamicCom(curve, times, iteration, valid)
         if valid:
             break
     return DynamicOutcome(result, None)
+
+
+def _passes(phase: ContactPhase, samples: tuple[FloatArray, FloatArray]) -> bool:
+    """Whether Eq. 1 holds exactly at each of a phase's collocation samples (positions and
+    accelerations, (s, 3) each)."""
+    return all(equilibrium_margin(phase, c, a).feasible for c, a in zip(*samples, strict=True))
+
+
+def _failing_phases(
+    phases: Sequence[ContactPhase],
+    samples: Sequence[tuple[FloatArray, FloatArray]],
+    broken: Sequence[int],
+) -> list[int] | None:
+    """The phases (increasing) that fail Eq. 1 at a collocation sample (per phase, positions
+    and accelerations (s, 3)) or are in ``broken``; None as soon as their repair windows
+    would cover more than ``REPAIR_MAX_SHARE`` of the phases (the rest is not checked)."""
+    failing: list[int] = []
+    limit = REPAIR_MAX_SHARE * len(phases)
+    for j, (phase, sample) in enumerate(zip(phases, samples, strict=True)):
+        if j in broken or not _passes(phase, sample):
+            failing.append(j)
+            if sum(b - a for a, b in _repair_windows(failing, len(phases))) > limit:
+                return None
+    return failing
+
+
+def _repair_windows(failing: Sequence[int], n: int) -> list[tuple[int, int]]:
+    """Phase windows [a, b) around the ``failing`` phases (increasing), ``REPAIR_RADIUS``
+    phases on each side, within the n phases; windows that overlap or touch are one."""
+    windows: list[tuple[int, int]] = []
+    for j in failing:
+        a, b = max(0, j - REPAIR_RADIUS), min(n, j + REPAIR_RADIUS + 1)
+        if windows and a <= windows[-1][1]:
+            windows[-1] = (windows[-1][0], max(windows[-1][1], b))
+        else:
+            windows.append((a, b))
+    return windows
+
+
+def _repaired(
+    curve: PiecewiseBezier,
+    windows: Sequence[tuple[int, int]],
+    phases: Sequence[ContactPhase],
+    durations: FloatArray,
+    ends: tuple[FloatArray, FloatArray],
+    joins: tuple[BezierCurve | None, BezierCurve | None],
+    kins: Sequence[Halfspaces | None],
+    reference: PiecewiseBezier | None,
+    reference_times: FloatArray | None,
+    settings: DynamicSettings,
+    lin: Sequence[tuple[FloatArray, FloatArray]],
+) -> tuple[PiecewiseBezier, int] | None:
+    """``curve`` with each window [a, b) of its phases solved again (linearised about
+    ``lin``, the curve's samples), joined C2 to the segments on each side (or to the curve's
+    own ``ends`` and ``joins``), and the most rounds a window took; None when a window finds
+    no curve that passes Eq. 1 at its collocation times and at ``validate_dynamics``'s
+    samples of each of its phases."""
+    segments = list(curve.segments)
+    n = len(segments)
+    rounds = 0
+    for a, b in windows:
+        # a window starts where the segment before it ends and ends where the one after it
+        # starts (exactly: the joins are C0 only to the solver's tolerance)
+        before, start = joins[0], ends[0]
+        if a > 0:
+            before = segments[a - 1]
+            start = np.asarray(before.control_points[-1], dtype=np.float64)
+        after, end = joins[1], ends[1]
+        if b < n:
+            after = segments[b]
+            end = np.asarray(after.control_points[0], dtype=np.float64)
+        found = _solve_rounds(
+            phases[a:b],
+            durations[a:b].tolist(),
+            start,
+            end,
+            kinematics=kins[a:b],
+            reference=reference,
+            reference_times=None
+            if reference_times is None
+            else reference_times[a : b + 1].tolist(),
+            settings=settings,
+            before=before,
+            after=after,
+            first=lin[a:b],
+            repair=False,
+            kept_ends=(a > 0, b < n),
+        ).com
+        if found is None or not found.valid:
+            return None
+        # between its collocation times too: a window joined to kept segments at both ends
+        # bends more than the whole curve would, and its ends keep no margin
+        dense = validate_dynamics(found.curve, phases[a:b], found.phase_times)
+        if any(report.fraction_valid < 1.0 for report in dense):
+            return None
+        rounds = max(rounds, found.iterations)
+        for k, segment in enumerate(found.curve.segments):
+            old = segments[a + k]
+            segments[a + k] = segment.retimed(old.t0, old.t1)
+    return PiecewiseBezier(tuple(segments)), rounds
 
 
 def _curve_only(solve: Callable[P, DynamicOutcome]) -> Callable[P, DynamicCom | None]:
@@ -418,6 +610,13 @@ class _CurveRows:
             out[o + 2 * per : self.offsets[j + 1]] = (ctrl @ self.a[j].T - self.b[j]).ravel()
         return out
 
+    def broken_phases(self, x: FloatArray) -> list[int]:
+        """The phases (increasing) whose rows ``x`` (n,) breaks by more than
+        ``LAZY_ROW_TOLERANCE``."""
+        broken = np.flatnonzero(self.excess(x) > LAZY_ROW_TOLERANCE)
+        phases = np.searchsorted(self.offsets, broken, side="right") - 1
+        return sorted(set(phases.tolist()))
+
     def rows(self, mask: BoolArray) -> tuple[sparse.csr_matrix, FloatArray]:
         """The rows ``mask`` (size,) selects, in order, as a CSR matrix (canonical: each
         row's columns increasing) and their bounds."""
@@ -478,6 +677,29 @@ def _join_points(
 
 KINEMATIC_SLACK = 5e-4
 """m: how far the control points may lie outside a phase's kinematic polytope."""
+
+REPAIR_RADIUS = 3
+"""Phases on each side of a failing phase that its repair window solves again with it
+(``DynamicSettings.local_repair``). With two, a window on the climbing hexapod's wall bent
+its curve more than the whole QP's round did: the body lagged it by 23 mm, the trial build
+failed at every slower level and three phases stopped at rest; with three it plays as the
+whole QP's curve did, for the same cost on the captured plans' QPs."""
+
+REPAIR_ROUNDS = 2
+"""Linearisation rounds a repair window takes at most (fewer when the curve's own rounds
+run out sooner): the windows of the captured plans' QPs that passed took one or two, and a
+window that fails costs its rounds on top of the next whole one."""
+
+REPAIR_MIN_VARIABLES = 8000
+"""Smallest QP (variables) whose failing phases are repaired in windows: finding them checks
+every sample of a failing round (else the check stops at the first failing one), which cost
+a smaller QP about as much as the round it could save (the quadruped's flat walk, 4,000
+variables, 50 ms a round, took 5 % longer); the hexapod's walk (8,800), Talos' stairs
+(8,800) and the climbing wall (58,000) save a round of 0.1 to 0.6 s."""
+
+REPAIR_MAX_SHARE = 0.5
+"""Largest share of a curve's phases that repair windows may cover; beyond it the next round
+solves the whole QP again."""
 
 TRUST_RADIUS = 0.25
 """m: how far a phase's control points may leave the box of its reference positions."""
@@ -657,25 +879,30 @@ def _solve_lazy(
     a_in: sparse.csr_matrix,
     b_in: FloatArray,
     working: BoolArray,
-) -> tuple[FloatArray | None, BoolArray, FloatArray | None]:
+    *,
+    settle: bool = True,
+) -> tuple[FloatArray | None, BoolArray, FloatArray | None, bool]:
     """:func:`_solve` with the inequalities ``a_in`` x <= ``b_in`` and only the rows
     ``working`` (size,) of ``curve_rows``; when its answer breaks another of those by more
     than ``LAZY_ROW_TOLERANCE``, every one it comes within ``LAZY_ROW_MARGIN`` of joins them
-    and the QP is solved again. The answer is that of the QP with every row (the rows left
-    out are not binding at it), None when that QP is infeasible (a QP with fewer rows is,
-    or rows are added until it is). Returns (the answer or None, the rows used, for the
-    next solve, and :func:`_solve`'s certificate: its equality rows are the whole QP's)."""
+    and, when ``settle``, the QP is solved again. Settled, the answer is that of the QP with
+    every row (the rows left out are not binding at it), None when that QP is infeasible (a
+    QP with fewer rows is, or rows are added until it is). Returns (the answer or None, the
+    rows used, for the next solve, :func:`_solve`'s certificate: its equality rows are the
+    whole QP's, and whether the answer keeps every row: False only when not ``settle``)."""
     while True:
         rows, bounds = curve_rows.rows(working)
         x, certificate = _solve(
             n, p, q, a_eq, b_eq, sparse.vstack([rows, a_in]), np.concatenate([bounds, b_in])
         )
         if x is None:
-            return None, working, certificate
+            return None, working, certificate, False
         excess = curve_rows.excess(x)
         if not np.any(excess[~working] > LAZY_ROW_TOLERANCE):
-            return x, working, None
+            return x, working, None, True
         working = working | (excess > -LAZY_ROW_MARGIN)
+        if not settle:
+            return x, working, None, False
 
 
 def _solve(

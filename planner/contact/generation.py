@@ -828,7 +828,21 @@ def _shift_com(
 
 def break_contact(ctx: ContactContext, state: ContactState, limb: str) -> ContactAttempt:
     """Release ``limb``: shift the COM over the remaining contacts (2PAC: a point of
-    equilibrium(after) inside kinematics(before)), then lift the effector by ``params.lift``."""
+    equilibrium(after) inside kinematics(before)), then lift the effector by ``params.lift``.
+    Remembered per state object and limb in ``ctx`` (the contact planner asks whether a leg
+    can be released before it releases it): asked again, the same attempt, at no work."""
+    key = ("break", id(state), limb)
+    hit: tuple[ContactState, ContactAttempt] = ctx.cached(
+        key, lambda: (state, _break_contact(ctx, state, limb))
+    )
+    if hit[0] is not state:  # the id of a state since collected
+        hit = (state, _break_contact(ctx, state, limb))
+        ctx.cache[key] = hit
+    return hit[1]
+
+
+def _break_contact(ctx: ContactContext, state: ContactState, limb: str) -> ContactAttempt:
+    """:func:`break_contact` computed."""
     if not ctx.has_limb(limb):
         return _fail(state, FailureReason.UNKNOWN_LIMB, limb, f"unknown limb {limb!r}")
     old = state.contact(limb)

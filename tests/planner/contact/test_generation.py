@@ -70,6 +70,23 @@ def test_break_and_create_on_flat(character: str) -> None:
         assert check_state(ctx, placed.state).valid
 
 
+def test_a_release_asked_again_is_remembered_for_that_state_only() -> None:
+    """break_contact on the same state object and limb answers the attempt it made, without
+    checking a state again; an equal state that is another object is released anew, to the
+    same answer."""
+    ctx, state = _flat_state("quadruped")
+    first = break_contact(ctx, state, "lf_foot")
+    checked = ctx.work.states_checked
+    assert first.ok and checked > 0
+    assert break_contact(ctx, state, "lf_foot") is first
+    assert ctx.work.states_checked == checked
+    twin = ContactState(np.array(state.q), state.contacts)
+    again = break_contact(ctx, twin, "lf_foot")
+    assert again is not first and ctx.work.states_checked > checked
+    np.testing.assert_array_equal(again.state.q, first.state.q)
+    assert break_contact(ctx, state, "rf_foot") is not first
+
+
 @pytest.mark.parametrize(
     ("character", "feet"), [("humanoid", HUMANOID_FEET), ("quadruped", QUAD_FEET)]
 )
