@@ -64,8 +64,9 @@ class DynamicSettings:
         only once an answer breaks one of them (the same optimum, a smaller QP); False puts
         them all in from the start (for comparisons).
     local_repair : a round's answer failing in a few phases has windows around them solved
-        again, the rest of the curve kept (``REPAIR_RADIUS``, ``REPAIR_MAX_SHARE``), before
-        another round of the whole QP; False: whole rounds only (for comparisons).
+        again, the rest of the curve kept (``REPAIR_RADIUS``, ``REPAIR_MAX_SHARE``; QPs of
+        ``REPAIR_MIN_VARIABLES`` or more), before another round of the whole QP; False: whole
+        rounds only (for comparisons).
     """
 
     degree: int = 7
@@ -211,8 +212,10 @@ def solve_dynamic_com(
     Where a round's answer fails Eq. 1 (or breaks a row left out) in a few phases only, those
     phases and ``REPAIR_RADIUS`` phases on each side are solved again as windows, the curve
     outside them kept and joined C2, linearised about the round's answer
-    (``DynamicSettings.local_repair``): a few small QPs instead of another round of the whole
-    one. When a window finds no valid curve, the next round is the whole QP's, as without."""
+    (``DynamicSettings.local_repair``, QPs of ``REPAIR_MIN_VARIABLES`` or more, once per
+    call): a few small QPs instead of another round of the whole one. When a window finds no
+    curve valid at its collocation times and between them, the next round is the whole QP's,
+    as without."""
     return _solve_rounds(
         phases,
         durations,

@@ -32,6 +32,17 @@ def _walk(n_phases: int, swing: float, shift: float) -> Walk:
     return phases, durations, first + up, last + up
 
 
+def _assert_c2(curve: trajectory.PiecewiseBezier) -> None:
+    """C2 at every phase boundary: both sides of each join agree (position, velocity,
+    acceleration)."""
+    for k in range(1, len(curve.segments)):
+        a, b = curve.segments[k - 1], curve.segments[k]
+        for order in (0, 1, 2):
+            left = a.derivative(order)(a.t1) if order else a(a.t1)
+            right = b.derivative(order)(b.t0) if order else b(b.t0)
+            np.testing.assert_allclose(left, right, atol=1e-5 * (1 + np.abs(left).max()))
+
+
 def _exact_validity(
     result: trajectory.DynamicCom, phases: list[trajectory.ContactPhase], per_phase: int
 ) -> float:
@@ -55,13 +66,7 @@ def test_a_walk_at_a_brisk_pace_passes_eq1_along_the_whole_curve(
     for order in (1, 2):
         ends = curve.derivative(order)(np.array([curve.t0, curve.t1]))
         np.testing.assert_allclose(ends, 0.0, atol=1e-5)
-    # C2 at every phase boundary: both sides of a join agree
-    for k in range(1, len(curve.segments)):
-        a, b = curve.segments[k - 1], curve.segments[k]
-        for order in (0, 1, 2):
-            left = a.derivative(order)(a.t1) if order else a(a.t1)
-            right = b.derivative(order)(b.t0) if order else b(b.t0)
-            np.testing.assert_allclose(left, right, atol=1e-5 * (1 + np.abs(left).max()))
+    _assert_c2(curve)
     np.testing.assert_allclose(result.phase_times, np.concatenate([[0], np.cumsum(durations)]))
 
 
@@ -596,13 +601,7 @@ def test_failing_phases_are_solved_again_in_windows_the_rest_of_the_curve_kept(
     assert all(report.fraction_valid == 1.0 for report in dense[5:12])  # between samples too
     y = repaired.curve(np.linspace(repaired.phase_times[8], repaired.phase_times[9], 50))[:, 1]
     assert y.max() <= 0.002 + trajectory.dynamic.KINEMATIC_SLACK + 1e-9
-    curve = repaired.curve
-    for k in range(1, len(curve.segments)):
-        a, b = curve.segments[k - 1], curve.segments[k]
-        for order in (0, 1, 2):
-            left = a.derivative(order)(a.t1) if order else a(a.t1)
-            right = b.derivative(order)(b.t0) if order else b(b.t0)
-            np.testing.assert_allclose(left, right, atol=1e-5 * (1 + np.abs(left).max()))
+    _assert_c2(repaired.curve)
 
 
 @pytest.mark.parametrize(
