@@ -324,7 +324,7 @@ def _solve_rounds(
     for iteration in range(1, settings.iterations + 1):
         w_rows, w_rhs = _wrench_rows(layout, phases, times, per_phase_basis, lin)
         last_round = iteration == settings.iterations
-        x, working, certificate, complete = _solve_lazy(
+        x, working, certificate, unsettled = _solve_lazy(
             layout.n,
             cost_p,
             cost_q,
@@ -344,13 +344,14 @@ def _solve_rounds(
                 total = float(weight.sum())
                 blame = weight / total if total > 0.0 else None
             return DynamicOutcome(result, blame)
+        complete = unsettled is None
         curve = _curve(layout, x, times, d)
         # every phase's samples in one evaluation of each curve (the same points as phase
         # by phase: a sample on a break is the later segment's either way)
         positions, accelerations = curve(all_times), curve.derivative(2)(all_times)
         lin = [(positions[k], accelerations[k]) for k in per_phase]
         if repair_left:
-            broken = [] if complete else curve_rows.broken_phases(x)
+            broken = [] if unsettled is None else curve_rows.broken_phases(unsettled)
             failing = _failing_phases(phases, lin, broken)
             valid = complete and failing == []
             if failing:
@@ -613,10 +614,10 @@ class _CurveRows:
             out[o + 2 * per : self.offsets[j + 1]] = (ctrl @ self.a[j].T - self.b[j]).ravel()
         return out
 
-    def broken_phases(self, x: FloatArray) -> list[int]:
-        """The phases (increasing) whose rows ``x`` (n,) breaks by more than
-        ``LAZY_ROW_TOLERANCE``."""
-        broken = np.flatnonzero(self.excess(x) > LAZY_ROW_TOLERANCE)
+    def broken_phases(self, excess: FloatArray) -> list[int]:
+        """The phases (increasing) with a row whose ``excess`` (size,; :meth:`excess` of an
+        answer) is over ``LAZY_ROW_TOLERANCE``."""
+        broken = np.flatnonzero(excess > LAZY_ROW_TOLERANCE)
         phases = np.searchsorted(self.offsets, broken, side="right") - 1
         return sorted(set(phases.tolist()))
 
@@ -884,7 +885,7 @@ def _solve_lazy(
     working: BoolArray,
     *,
     settle: bool = True,
-) -> tuple[FloatArray | None, BoolArray, FloatArray | None, bool]:
+) -> tuple[FloatArray | None, BoolArray, FloatArray | None, FloatArray | None]:
     """:func:`_solve` with the inequalities ``a_in`` x <= ``b_in`` and only the rows
     ``working`` (size,) of ``curve_rows``; when its answer breaks another of those by more
     than ``LAZY_ROW_TOLERANCE``, every one it comes within ``LAZY_ROW_MARGIN`` of joins them
@@ -892,20 +893,21 @@ def _solve_lazy(
     every row (the rows left out are not binding at it), None when that QP is infeasible (a
     QP with fewer rows is, or rows are added until it is). Returns (the answer or None, the
     rows used, for the next solve, :func:`_solve`'s certificate: its equality rows are the
-    whole QP's, and whether the answer keeps every row: False only when not ``settle``)."""
+    whole QP's, and, for an answer that breaks a row left out (only when not ``settle``), its
+    :meth:`_CurveRows.excess` (size,), else None)."""
     while True:
         rows, bounds = curve_rows.rows(working)
         x, certificate = _solve(
             n, p, q, a_eq, b_eq, sparse.vstack([rows, a_in]), np.concatenate([bounds, b_in])
         )
         if x is None:
-            return None, working, certificate, False
+            return None, working, certificate, None
         excess = curve_rows.excess(x)
         if not np.any(excess[~working] > LAZY_ROW_TOLERANCE):
-            return x, working, None, True
+            return x, working, None, None
         working = working | (excess > -LAZY_ROW_MARGIN)
         if not settle:
-            return x, working, None, False
+            return x, working, None, excess
 
 
 def _solve(

@@ -222,9 +222,9 @@ def test_rows_left_out_until_needed_give_the_answer_of_the_qp_with_every_row(
     original = trajectory.dynamic._solve_lazy
 
     def recording(*args: Any, settle: bool = True) -> Any:
-        x, working, certificate, complete = original(*args, settle=settle)
-        solves.append((args, x, working, settle, complete))
-        return x, working, certificate, complete
+        x, working, certificate, unsettled = original(*args, settle=settle)
+        solves.append((args, x, working, settle, unsettled is None))
+        return x, working, certificate, unsettled
 
     monkeypatch.setattr(trajectory.dynamic, "_solve_lazy", recording)
     lazy = trajectory.dynamic_com(phases, durations, start, end, kinematics=[wall] * 5)
