@@ -119,6 +119,7 @@ class ContactContext:
     )
     cache: dict[Any, Any] = field(default_factory=dict, repr=False)
     work: WorkCount = field(default_factory=WorkCount, repr=False)
+    by_state: dict[Any, Any] = field(default_factory=dict, repr=False)
 
     def cached(self, key: Any, make: Callable[[], Any]) -> Any:
         """Memoise ``make()`` under ``key`` (bounded; cleared when full)."""
@@ -129,6 +130,21 @@ class ContactContext:
             hit = make()
             self.cache[key] = hit
         return hit
+
+    def per_state(self, state: Any, key: Any, make: Callable[[], Any]) -> Any:
+        """Memoise ``make()`` per ``state`` object and ``key`` (bounded; cleared when full),
+        for a value that is a function of the state and the key alone. Kept apart from
+        :meth:`cached`'s memory, whose clearing (and so the answers of the values it keeps
+        by a rounded key) it leaves as it is."""
+        full = (id(state), key)
+        hit = self.by_state.get(full)
+        if hit is not None and hit[0] is state:  # not the id of a state since collected
+            return hit[1]
+        if len(self.by_state) > _CACHE_SIZE:
+            self.by_state.clear()
+        value = make()
+        self.by_state[full] = (state, value)
+        return value
 
     def shared(self, key: Any, make: Callable[[], Any]) -> Any:
         """Memoise ``make()`` under ``key`` for every context of this process with the same

@@ -344,7 +344,20 @@ def advance_body(
 ) -> ContactState | None:
     """``state`` with the body moved toward the root pose ``root_target`` (4, 4) while every
     contact is held (whole-body IK, the root pose a soft target); None when the result is not
-    a valid state (contacts held and on their surfaces, balanced, kinematic, collision-free)."""
+    a valid state (contacts held and on their surfaces, balanced, kinematic, collision-free).
+    Remembered per state object and target in ``ctx`` (a walk stuck in place tries the same
+    advances again, cycle after cycle): asked again, the same answer, at no work."""
+    key = ("advance", np.asarray(root_target, dtype=np.float64).tobytes())
+    advanced: ContactState | None = ctx.per_state(
+        state, key, lambda: _advance_body(ctx, state, root_target)
+    )
+    return advanced
+
+
+def _advance_body(
+    ctx: ContactContext, state: ContactState, root_target: FloatArray
+) -> ContactState | None:
+    """:func:`advance_body` computed."""
     tasks = [
         *hold_tasks(state.contacts, ctx),
         FramePlacementTask(_ROOT_FRAME, root_target, Priority.COM),

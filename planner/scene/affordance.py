@@ -236,7 +236,9 @@ def _boundary_segments(
     return out
 
 
-_LOOP_EDGES: dict[int, tuple[Surface, tuple[FloatArray, FloatArray] | None]] = {}
+_LoopEdges = tuple[FloatArray, FloatArray, tuple[g2.Edge, ...]]
+_LOOP_EDGES: dict[int, tuple[Surface, _LoopEdges | None]] = {}
+_SCALAR_EDGES = 64  # up to this many edges, one point's winding number in scalar arithmetic
 
 
 def _winding_numbers(surface: Surface, coords: FloatArray) -> NDArray[np.int64]:
@@ -245,16 +247,23 @@ def _winding_numbers(surface: Surface, coords: FloatArray) -> NDArray[np.int64]:
     hit = _LOOP_EDGES.get(id(surface))
     if hit is None or hit[0] is not surface:
         loops = surface.polygons_2d()
-        edges = g2.loop_edges(loops) if loops else None
-        for array in edges or ():
-            array.flags.writeable = False
+        edges: _LoopEdges | None = None
+        if loops:
+            a, b = g2.loop_edges(loops)
+            a.flags.writeable = b.flags.writeable = False
+            edges = (a, b, g2.edge_tuples(a, b))
         if len(_LOOP_EDGES) > 4096:
             _LOOP_EDGES.clear()
         hit = (surface, edges)
         _LOOP_EDGES[id(surface)] = hit
+    points = np.asarray(coords, dtype=np.float64).reshape(-1, 2)
     if hit[1] is None:
-        return np.zeros(len(np.asarray(coords).reshape(-1, 2)), dtype=np.int64)
-    return g2.edge_winding_numbers(coords, *hit[1])
+        return np.zeros(len(points), dtype=np.int64)
+    a, b, scalar = hit[1]
+    if len(points) == 1 and len(scalar) <= _SCALAR_EDGES:  # most queries: one contact point
+        x, y = points[0].tolist()
+        return np.array([g2.point_winding_number(x, y, scalar)], dtype=np.int64)
+    return g2.edge_winding_numbers(points, a, b)
 
 
 def _triangle_geometry(

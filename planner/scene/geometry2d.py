@@ -6,6 +6,8 @@ area) for outer boundaries and clockwise for holes. Kernels assume valid input.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -111,6 +113,32 @@ def loop_edges(loops: list[FloatArray]) -> tuple[FloatArray, FloatArray]:
     a = np.concatenate([np.asarray(loop, dtype=np.float64) for loop in loops])
     b = np.concatenate([np.roll(np.asarray(loop, dtype=np.float64), -1, axis=0) for loop in loops])
     return a, b
+
+
+Edge = tuple[float, float, float, float]
+
+
+def edge_tuples(a: FloatArray, b: FloatArray) -> tuple[Edge, ...]:
+    """The edges (starts ``a`` (e, 2), ends ``b`` (e, 2)) as (ax, ay, bx, by) Python floats,
+    for :func:`point_winding_number`."""
+    return tuple(
+        zip(a[:, 0].tolist(), a[:, 1].tolist(), b[:, 0].tolist(), b[:, 1].tolist(), strict=True)
+    )
+
+
+def point_winding_number(x: float, y: float, edges: Sequence[Edge]) -> int:
+    """:func:`edge_winding_numbers` of the one point (x, y) about ``edges``
+    (:func:`edge_tuples`), in scalar arithmetic: the same operations, so the same answer, at
+    a tenth of the cost for one point and a few edges (a contact point on a tread or slab)."""
+    total = 0
+    for ax, ay, bx, by in edges:
+        cross = (bx - ax) * (y - ay) - (by - ay) * (x - ax)
+        if ay <= y:
+            if by > y and cross > 0.0:
+                total += 1
+        elif by <= y and cross < 0.0:
+            total -= 1
+    return total
 
 
 def edge_winding_numbers(points: FloatArray, a: FloatArray, b: FloatArray) -> NDArray[np.int64]:

@@ -309,13 +309,13 @@ def _unrefined_runs_replaced(
 def test_a_run_without_refinement_that_does_not_settle_is_run_again_refined(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    """Clarabel's unrefined run ending at its iteration limit: the QP is solved again with
-    refinement, and the answer is the one a refined run gives."""
+    """Clarabel's unrefined run stopping for lack of progress far from an answer: the QP is
+    solved again with refinement, and the answer is the one a refined run gives."""
     phases, durations, start, end = _walk(3, 0.4, 0.15)
     clarabel = trajectory.dynamic.clarabel
 
     class Unsettled:  # stopped far from an answer
-        status = clarabel.SolverStatus.MaxIterations
+        status = clarabel.SolverStatus.InsufficientProgress
         x = ()
         r_prim = r_dual = 1e-3
         obj_val, obj_val_dual = 1.0, 2.0
@@ -328,6 +328,34 @@ def test_a_run_without_refinement_that_does_not_settle_is_run_again_refined(
     assert runs[:2] == [False, True] and retried is not None and refined is not None
     for a, b in zip(retried.curve.segments, refined.curve.segments, strict=True):
         np.testing.assert_array_equal(a.control_points, b.control_points)
+
+
+def test_a_run_at_the_iteration_cap_is_not_repeated(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Clarabel's run reaching ``SOLVER_MAX_ITERATIONS`` far from an answer: no second,
+    refined run of the same QP, no curve; every run is capped at that count."""
+    phases, durations, start, end = _walk(3, 0.4, 0.15)
+    clarabel = trajectory.dynamic.clarabel
+    real = clarabel.DefaultSolver
+    caps: list[int] = []
+
+    class Capped:  # stopped far from an answer
+        status = clarabel.SolverStatus.MaxIterations
+        x = ()
+        r_prim = r_dual = 1e-3
+        obj_val, obj_val_dual = 1.0, 2.0
+
+    class Solver:
+        def __init__(self, *args: Any) -> None:
+            caps.append(int(args[-1].max_iter))
+            self.solver = real(*args)
+
+        def solve(self) -> Any:
+            self.solver.solve()
+            return Capped()
+
+    monkeypatch.setattr(clarabel, "DefaultSolver", Solver)
+    assert trajectory.dynamic_com(phases, durations, start, end) is None
+    assert caps == [trajectory.dynamic.SOLVER_MAX_ITERATIONS]
 
 
 def test_a_run_that_stalls_within_the_reduced_tolerance_is_taken_without_a_refined_run(

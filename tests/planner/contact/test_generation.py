@@ -23,6 +23,7 @@ from planner.contact.generation import (
     stand_up,
     state_from_configuration,
 )
+from planner.contact.sequence import advance_body
 from planner.contact.state import ContactState
 from planner.shapes import Box
 from tests.planner.contact.twister_game import context, discs, scene, start_state
@@ -85,6 +86,28 @@ def test_a_release_asked_again_is_remembered_for_that_state_only() -> None:
     assert again is not first and ctx.work.states_checked > checked
     np.testing.assert_array_equal(again.state.q, first.state.q)
     assert break_contact(ctx, state, "rf_foot") is not first
+
+
+def test_an_advance_asked_again_is_remembered_for_that_state_only() -> None:
+    """advance_body on the same state object toward the same root pose answers the state it
+    found, without checking a state again; an equal state that is another object is moved
+    anew, to the same configuration; another target is another advance."""
+    ctx, state = _flat_state("quadruped")
+    effector_pose(ctx, "lf_foot", state.q)  # the kinematics of the state, root pose read below
+    target = np.array(ctx.pin_data.oMi[1].homogeneous)
+    target[0, 3] += 0.05
+    first = advance_body(ctx, state, target)
+    checked = ctx.work.states_checked
+    assert first is not None and checked > 0
+    assert advance_body(ctx, state, target.copy()) is first
+    assert ctx.work.states_checked == checked
+    twin = ContactState(np.array(state.q), state.contacts)
+    again = advance_body(ctx, twin, target)
+    assert again is not None and again is not first and ctx.work.states_checked > checked
+    np.testing.assert_array_equal(again.q, first.q)
+    further = target.copy()
+    further[0, 3] += 0.02
+    assert advance_body(ctx, state, further) is not first
 
 
 @pytest.mark.parametrize(

@@ -77,6 +77,22 @@ def test_winding_agrees_with_convex_halfspaces(points, queries) -> None:
     assert np.array_equal(reverse[clear], -expected[clear].astype(np.int64))
 
 
+@given(
+    st.lists(point_sets, min_size=1, max_size=3),
+    st.lists(st.tuples(coordinate, coordinate), min_size=1, max_size=20),
+)
+def test_one_points_winding_number_in_scalar_arithmetic_is_the_arrays(loops, queries) -> None:
+    """point_winding_number of a point equals edge_winding_numbers' for it, about any loops
+    (not convex, crossing, holes), at any point, a vertex or an edge's midpoint included."""
+    polygons = [np.asarray(loop, dtype=np.float64) for loop in loops]
+    a, b = g2.loop_edges(polygons)
+    edges = g2.edge_tuples(a, b)
+    points = np.vstack([np.asarray(queries, dtype=np.float64), a, 0.5 * (a + b)])
+    expected = g2.edge_winding_numbers(points, a, b)
+    for (x, y), want in zip(points.tolist(), expected.tolist(), strict=True):
+        assert g2.point_winding_number(x, y, edges) == want
+
+
 def _oracle_area(polygon: np.ndarray, a2: np.ndarray, b2: np.ndarray) -> float:
     """Area of (convex polygon) & {a2 x <= b2} by scipy's half-space intersection."""
     eq = ConvexHull(polygon).equations  # n.x + d <= 0
