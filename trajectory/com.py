@@ -17,7 +17,7 @@ import numpy as np
 from trajectory._types import FloatArray, as_float_array
 from trajectory.bezier import BezierCurve, PiecewiseBezier
 from trajectory.contacts import Contact, ContactPhase
-from trajectory.equilibrium import _margin, equilibrium_halfspaces
+from trajectory.equilibrium import equilibrium_halfspaces, margins_at
 from trajectory.polytope import Halfspaces, stack
 from trajectory.transition import (
     TransitionCost,
@@ -253,9 +253,7 @@ def validate_dynamics(
         a, b = float(phase_times[j]), float(phase_times[j + 1])
         ts = np.linspace(a, b, n_samples + 2)[1:-1] if b > a else np.full(1, a)
         cs, accs = curve(ts), acc_curve(ts)
-        margins = np.array(
-            [_margin(phase, c, acc[None, :]).margin for c, acc in zip(cs, accs, strict=True)]
-        )
+        margins = margins_at(phase, cs, accs)[1]
         valid = margins >= -tol * phase.mass
         worst = float(-np.min(margins[~valid])) if np.any(~valid) else 0.0
         reports.append(PhaseReport(j, a, b, ts.size, float(np.mean(valid)), worst))

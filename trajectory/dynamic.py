@@ -36,7 +36,7 @@ from trajectory._types import GRAVITY, BoolArray, FloatArray, as_float_array
 from trajectory.bezier import BezierCurve, PiecewiseBezier, bernstein
 from trajectory.com import validate_dynamics
 from trajectory.contacts import ContactPhase
-from trajectory.equilibrium import equilibrium_margin
+from trajectory.equilibrium import margins_at
 from trajectory.polytope import Halfspaces
 
 P = ParamSpec("P")
@@ -391,7 +391,7 @@ def _solve_rounds(
 def _passes(phase: ContactPhase, samples: tuple[FloatArray, FloatArray]) -> bool:
     """Whether Eq. 1 holds exactly at each of a phase's collocation samples (positions and
     accelerations, (s, 3) each)."""
-    return all(equilibrium_margin(phase, c, a).feasible for c, a in zip(*samples, strict=True))
+    return bool(margins_at(phase, *samples)[0].all())
 
 
 def _failing_phases(

@@ -437,6 +437,31 @@ def _margin(phase: ContactPhase, com: FloatArray, acc: FloatArray | None) -> Equ
     return _margin_primal(G, w, phase.mass)
 
 
+def margins_at(
+    phase: ContactPhase, coms: FloatArray, accs: FloatArray
+) -> tuple[BoolArray, FloatArray]:
+    """:func:`equilibrium_margin` at each of n samples, COM positions (n, 3) m and
+    accelerations (n, 3) m/s^2 (world frame): whether Eq. 1 holds (n,) and the margin (n,) N,
+    the same answers as one call per sample (the same operations), the gravity wrenches
+    computed at once (a curve's collocation samples)."""
+    c = np.asarray(coms, dtype=np.float64).reshape(-1, 3)
+    a = np.asarray(accs, dtype=np.float64).reshape(-1, 3)
+    if a.shape != c.shape:
+        raise ValueError(f"accs: expected shape {c.shape}, got {a.shape}")
+    G = phase.wrench_generators
+    feasible = np.zeros(len(c), dtype=np.bool_)
+    margins = np.full(len(c), -math.inf)
+    if G.shape[0] == 0:
+        return feasible, margins
+    weight = phase.mass * GRAVITY
+    for i, w in enumerate(gravity_wrench(phase.mass, c, a)):
+        result = _margin_dual(G, w, weight)
+        if result is None:
+            result = _margin_primal(G, w, phase.mass)
+        feasible[i], margins[i] = result.feasible, result.margin
+    return feasible, margins
+
+
 _DUAL_ROWS: dict[int, tuple[FloatArray, tuple[FloatArray, ...]]] = {}
 _DUAL_ROWS_KEPT = 512  # generator sets whose dual LP rows are kept (a plan's phases)
 

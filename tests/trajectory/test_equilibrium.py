@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 import trajectory
 from tests.trajectory.helpers import patch, random_phase
-from trajectory import Contact, ContactPhase
+from trajectory import Contact, ContactPhase, equilibrium
 
 
 def _oracle():  # type: ignore[no-untyped-def]
@@ -96,6 +96,27 @@ def test_polytope_consistent_with_lp(seed: int, k: int) -> None:
             assert margin.feasible
         elif viol > 1e-4:
             assert not margin.feasible
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), k=st.integers(1, 4))
+def test_margins_at_many_samples_are_those_of_one_sample_each(seed: int, k: int) -> None:
+    """margins_at answers, sample by sample, exactly what equilibrium_margin does (feasible
+    and infeasible COMs, still and accelerating), and refuses mismatched shapes."""
+    rng = np.random.default_rng(seed)
+    phase = random_phase(rng, k)
+    pts = np.vstack([c.points for c in phase.contacts]).mean(axis=0)
+    coms = np.column_stack([pts[:2] + rng.uniform(-0.6, 0.6, (12, 2)), rng.uniform(0.5, 1.2, 12)])
+    accs = rng.uniform(-4.0, 4.0, (12, 3)) * (rng.random((12, 1)) < 0.7)
+    feasible, margins = equilibrium.margins_at(phase, coms, accs)
+    for c, a, ok, m in zip(coms, accs, feasible, margins, strict=True):
+        one = trajectory.equilibrium_margin(phase, c, a)
+        assert one.feasible == ok and one.margin == m
+    with pytest.raises(ValueError, match="accs"):
+        equilibrium.margins_at(phase, coms, accs[:3])
+    empty = ContactPhase([], mass=70.0)
+    none_ok, none_margin = equilibrium.margins_at(empty, coms[:2], accs[:2])
+    assert not none_ok.any() and np.all(none_margin == -np.inf)
 
 
 def test_flat_feet_region_is_support_polygon() -> None:
