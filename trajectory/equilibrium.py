@@ -430,11 +430,16 @@ def _margin(phase: ContactPhase, com: FloatArray, acc: FloatArray | None) -> Equ
     m = G.shape[0]
     if m == 0:
         return EquilibriumMargin(False, -math.inf, np.zeros(0))
-    w = gravity_wrench(phase.mass, com, acc)[0]
-    fast = _margin_dual(G, w, phase.mass * GRAVITY)
+    return _wrench_margin(G, gravity_wrench(phase.mass, com, acc)[0], phase.mass)
+
+
+def _wrench_margin(G: FloatArray, w: FloatArray, mass: float) -> EquilibriumMargin:
+    """The robustness LP of the generators ``G`` (m, 6) for the wrench ``w`` (6,) of a body
+    of ``mass`` kg: its dual when the duality gap certifies it, else the primal."""
+    fast = _margin_dual(G, w, mass * GRAVITY)
     if fast is not None:
         return fast
-    return _margin_primal(G, w, phase.mass)
+    return _margin_primal(G, w, mass)
 
 
 def margins_at(
@@ -453,11 +458,8 @@ def margins_at(
     margins = np.full(len(c), -math.inf)
     if G.shape[0] == 0:
         return feasible, margins
-    weight = phase.mass * GRAVITY
     for i, w in enumerate(gravity_wrench(phase.mass, c, a)):
-        result = _margin_dual(G, w, weight)
-        if result is None:
-            result = _margin_primal(G, w, phase.mass)
+        result = _wrench_margin(G, w, phase.mass)
         feasible[i], margins[i] = result.feasible, result.margin
     return feasible, margins
 
