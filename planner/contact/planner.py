@@ -160,6 +160,13 @@ DETOUR_RADIUS = 0.3
 far from a vertical line through the root where each walk stalled (``_detour_checker``): the
 straight line a new search finds first over open ground would lead the walk back to the same
 footholds (a searched guide is random and goes elsewhere anyway)."""
+BLOCKED_RESUMES = 1
+"""Times a plan walks on from before where a walk was blocked short of its guide's end (no
+foothold ahead in its reach), every foothold that walk took in its last ``RESUME_BACK_M`` of
+guide avoided for its limb (within ``generation.AVOID_RADIUS``): on rubble the first walk,
+along the straight line, put its right foot on a slab from which no foothold ahead could be
+reached, on every seed; walked on again with the same choices, it stuck there again, and
+with those footholds avoided it walks on to the goal on five seeds of six."""
 SEARCH_SHARE = budgets.SEARCH_SHARE  # of the work (and of the clock cap) for the search
 MAX_REPLAN_WALKS = 8
 """Contact walks a plan may start again when its whole-body motion cannot make a contact
@@ -189,6 +196,16 @@ def _after(
     states = (*prefix, *(walk.value or ()))
     stats = {**walk.stats, "states": len(states), "resumed_at": len(prefix)}
     return PlanResult(walk.status, states, stats, walk.message)
+
+
+def _footholds_taken(states: Sequence[ContactState], since: int) -> list[tuple[str, FloatArray]]:
+    """(limb, position (3,)) of every contact made in ``states`` after state ``since``."""
+    return [
+        (c.limb, np.asarray(c.position, dtype=np.float64))
+        for d in range(since + 1, len(states))
+        for c in states[d].contacts
+        if states[d - 1].contact(c.limb) is None
+    ]
 
 
 def _better(
@@ -344,6 +361,8 @@ def plan_contact_motion(
     straight = False  # the last guide searched is the straight line from start to goal
     fenced = False  # a walk along a straight guide stalled: later guides go round stalls
     resume_gained = True  # the best walk may be walked on (no resume from it gained nothing)
+    dead_ends: list[tuple[str, FloatArray]] = []  # footholds a resumed walk avoids
+    blocked_resumes = 0  # walks resumed after a walk was blocked (``BLOCKED_RESUMES``)
     for jitter in _RETRY_JITTERS:
         # A stuck walk is walked on from before where it stalled, with noisier foothold
         # choices; the best attempt (SOLVED, else the furthest along) is kept.
@@ -423,6 +442,7 @@ def plan_contact_motion(
             until=walk,
             params=params,
             limbs=opts.limbs,
+            avoid=tuple(dead_ends) if resumed else (),
             resume=resumed,
         )
         if prefix:
@@ -437,13 +457,22 @@ def plan_contact_motion(
             resume_gained = gained
         elif gained:
             resume_gained = True  # a new best walk may be walked on in turn
+        if gained:
+            best = (sequence, poses, path)
         if sequence.stats.get("blocked"):
             # stuck short of the guide's end with every foothold ahead out of its reach: a
             # walk resumed from behind that point, along the same guide, came back to it
-            # and stuck there again on every rubble_humanoid seed measured; a new guide next
-            resume_gained = False
-        if gained:
-            best = (sequence, poses, path)
+            # and stuck there again on every rubble_humanoid seed measured. It is walked on
+            # from there once more with the footholds that led to it avoided
+            # (``BLOCKED_RESUMES``); then a new guide
+            taken: list[tuple[str, FloatArray]] = []
+            walked = sequence.value or ()
+            if blocked_resumes < BLOCKED_RESUMES and walked and gained:
+                taken = _footholds_taken(walked, resume_index(walked, poses, RESUME_BACK_M))
+            resume_gained = bool(taken)
+            if taken:
+                blocked_resumes += 1
+                dead_ends.extend(taken)
     assert best is not None
     sequence, poses, path = best
     states = _standing_up(ctx, sequence.value or (start_state.value,))

@@ -1,7 +1,8 @@
 """A walk that stalls is retried from a little before where it stalled, its states up to
 there kept (``planner.contact.planner``, ``sequence.resume_index``), instead of walking the
-whole guide again; one stuck short of its guide's end with no foothold in reach is not (it
-would come back to the same place): the next walk starts over on a new guide."""
+whole guide again; one stuck short of its guide's end with no foothold in reach is walked on
+once more with the footholds that led it there avoided (walked on as it was, it would come
+back to the same place), then the next walk starts over on a new guide."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ import pytest
 from numpy.typing import NDArray
 
 import planner.contact.planner as contact_planner
+from planner.contact.generation import AVOID_RADIUS
 from planner.contact.planner import (
     DETOUR_RADIUS,
     RESUME_BACK_M,
@@ -61,6 +63,7 @@ class Walk(NamedTuple):
     guide: FloatArray
     resumed: bool
     result: PlanResult[tuple[ContactState, ...]]
+    avoid: tuple[tuple[str, FloatArray], ...]
 
 
 def _plan_recording_walks(
@@ -77,7 +80,8 @@ def _plan_recording_walks(
 
     def recorded(ctx: Any, begin: ContactState, poses: Any, *args: Any, **kwargs: Any) -> Any:
         walk = real_walk(ctx, begin, poses, *args, **kwargs)
-        walks.append(Walk(begin, np.asarray(poses), bool(kwargs.get("resume")), walk))
+        avoid = tuple(kwargs.get("avoid", ()))
+        walks.append(Walk(begin, np.asarray(poses), bool(kwargs.get("resume")), walk, avoid))
         return walk
 
     character, data = character_and_data("humanoid")
@@ -109,10 +113,10 @@ def test_a_stalled_walk_is_walked_on_from_before_where_it_stalled() -> None:
         "climbing_wall", np.array([0.5, 0.0, 0.0]), np.array([3.3, 0.0, 1.4]), 60.0, options
     )
     assert len(walks) >= 2
-    first, _, resumed, stalled = walks[0]
+    first, _, resumed, stalled, _ = walks[0]
     assert not resumed and stalled.status is PlanStatus.APPROXIMATE
     assert not stalled.stats.get("stranded") and not stalled.stats.get("blocked")
-    start, _, resumed, _ = walks[1]
+    start, _, resumed, _, _ = walks[1]
     assert resumed
     before = stalled.value
     assert before is not None
@@ -132,11 +136,26 @@ def test_a_stalled_walk_is_walked_on_from_before_where_it_stalled() -> None:
     assert all(a is b for a, b in zip(answer[:kept], before[:kept], strict=True))
 
 
-def test_a_walk_blocked_short_of_its_guide_end_starts_over_on_a_new_guide() -> None:
+def _assert_avoided(walk: Walk) -> None:
+    """No contact ``walk`` made after its start lies within ``AVOID_RADIUS`` of a point its
+    limb was to avoid."""
+    states = walk.result.value or ()
+    for before, after in itertools.pairwise((walk.start, *states)):
+        for contact in after.contacts:
+            if before.contact(contact.limb) is not None:
+                continue
+            for limb, point in walk.avoid:
+                if limb == contact.limb:
+                    gap = float(np.linalg.norm(np.asarray(contact.position) - point))
+                    assert gap >= AVOID_RADIUS - 1e-9, (limb, gap)
+
+
+def test_a_walk_blocked_short_of_its_guide_end_is_walked_on_once_then_starts_over() -> None:
     """The humanoid cannot step across the first gap at this seed: its first walk is stuck
     there, short of its guide's end, with no foothold within reach ahead
-    (``stats["blocked"]``). Walking on along the same guide would come back to the gap, so
-    the next walk starts over from the start."""
+    (``stats["blocked"]``). The next walk goes on along the same guide from before where it
+    stuck, every foothold the first took in its last ``RESUME_BACK_M`` of guide avoided; it
+    is stuck at the gap again, and the walk after it starts over from the start."""
     ranges = gaps_platform_ranges()
     middle = [(x0 + x1) / 2 for x0, x1 in ranges]
     result, walks = _plan_recording_walks(
@@ -146,25 +165,62 @@ def test_a_walk_blocked_short_of_its_guide_end_starts_over_on_a_new_guide() -> N
         10.0,
     )
     assert result.status is not PlanStatus.SOLVED
-    assert len(walks) >= 2
-    first, _, resumed, stalled = walks[0]
+    assert len(walks) >= 3
+    first, poses, resumed, stalled, _ = walks[0]
     assert not resumed and stalled.status is PlanStatus.APPROXIMATE
     assert stalled.stats.get("blocked") == 1, stalled.message
-    assert not walks[1].resumed and walks[1].start is first
+    walked = stalled.value
+    assert walked is not None
+    k = resume_index(walked, poses, RESUME_BACK_M)
+    again = walks[1]
+    assert again.resumed and again.start is walked[k]
+    taken = [
+        (c.limb, c.position)
+        for before, after in itertools.pairwise(walked[k:])
+        for c in after.contacts
+        if before.contact(c.limb) is None
+    ]
+    assert taken and len(again.avoid) == len(taken)
+    for (limb, point), (avoided_limb, avoided) in zip(taken, again.avoid, strict=True):
+        assert limb == avoided_limb
+        np.testing.assert_array_equal(point, avoided)
+    _assert_avoided(again)
+    assert again.result.stats.get("blocked") == 1
+    assert not walks[2].resumed and walks[2].start is first
 
 
-def test_a_walk_started_over_after_stalls_follows_a_guide_round_them() -> None:
+def test_rubbles_blocked_straight_walk_gets_through_avoiding_its_dead_end() -> None:
+    """Walking diagonally across the rubble's tilted slabs along the straight line, the
+    first walk puts a foot on a slab from which no foothold ahead is in reach: blocked. Walked
+    on from before, that foothold avoided, it gets to the goal along the same guide."""
+    result, walks = _plan_recording_walks(
+        "rubble", np.array([-0.3, 0.5, 0.0]), np.array([2.8, 2.5, 0.0]), 30.0
+    )
+    assert result.status is PlanStatus.SOLVED, result.message
+    assert len(walks) == 2
+    first, again = walks
+    assert first.result.stats.get("blocked") == 1, first.result.message
+    assert again.resumed and again.avoid and again.result.status is PlanStatus.SOLVED
+    np.testing.assert_array_equal(again.guide, first.guide)
+    _assert_avoided(again)
+
+
+def test_a_walk_started_over_after_stalls_follows_a_guide_round_them(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     """Walking diagonally across the rubble's tilted slabs, the first walk stalls among
-    them; a new search finds the same straight guide first (the trunk clears every slab),
-    which would lead back to the same footholds, so a guide planned after stalls keeps the
-    trunk ``DETOUR_RADIUS`` from where the walks stalled, and the plan gets through."""
+    them (here not walked on again past its dead end: ``BLOCKED_RESUMES`` 0); a new search
+    finds the same straight guide first (the trunk clears every slab), which would lead back
+    to the same footholds, so a guide planned after stalls keeps the trunk
+    ``DETOUR_RADIUS`` from where the walks stalled, and the plan gets through."""
+    monkeypatch.setattr(contact_planner, "BLOCKED_RESUMES", 0)
     result, walks = _plan_recording_walks(
         "rubble", np.array([-0.3, 0.5, 0.0]), np.array([2.8, 2.5, 0.0]), 30.0
     )
     assert result.status is PlanStatus.SOLVED, result.message
     stalls: list[FloatArray] = []
     new_guides = 0
-    for _, poses, resumed, walk in walks:
+    for _, poses, resumed, walk, _ in walks:
         if not resumed and stalls:
             new_guides += 1
             roots = poses[:, :2, 3]
