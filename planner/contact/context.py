@@ -131,19 +131,23 @@ class ContactContext:
             self.cache[key] = hit
         return hit
 
-    def per_state(self, state: Any, key: Any, make: Callable[[], Any]) -> Any:
+    def per_state(
+        self, state: Any, key: Any, make: Callable[[], Any], *, in_cache: bool = False
+    ) -> Any:
         """Memoise ``make()`` per ``state`` object and ``key`` (bounded; cleared when full),
         for a value that is a function of the state and the key alone. Kept apart from
         :meth:`cached`'s memory, whose clearing (and so the answers of the values it keeps
-        by a rounded key) it leaves as it is."""
+        by a rounded key) it leaves as it is, unless ``in_cache`` (the releases, remembered
+        there since before: moving them would move those answers)."""
+        memory = self.cache if in_cache else self.by_state
         full = (id(state), key)
-        hit = self.by_state.get(full)
+        hit = memory.get(full)
         if hit is not None and hit[0] is state:  # not the id of a state since collected
             return hit[1]
-        if len(self.by_state) > _CACHE_SIZE:
-            self.by_state.clear()
+        if hit is None and len(memory) > _CACHE_SIZE:
+            memory.clear()
         value = make()
-        self.by_state[full] = (state, value)
+        memory[full] = (state, value)
         return value
 
     def shared(self, key: Any, make: Callable[[], Any]) -> Any:

@@ -831,14 +831,10 @@ def break_contact(ctx: ContactContext, state: ContactState, limb: str) -> Contac
     equilibrium(after) inside kinematics(before)), then lift the effector by ``params.lift``.
     Remembered per state object and limb in ``ctx`` (the contact planner asks whether a leg
     can be released before it releases it): asked again, the same attempt, at no work."""
-    key = ("break", id(state), limb)
-    hit: tuple[ContactState, ContactAttempt] = ctx.cached(
-        key, lambda: (state, _break_contact(ctx, state, limb))
+    attempt: ContactAttempt = ctx.per_state(
+        state, ("break", limb), lambda: _break_contact(ctx, state, limb), in_cache=True
     )
-    if hit[0] is not state:  # the id of a state since collected
-        hit = (state, _break_contact(ctx, state, limb))
-        ctx.cache[key] = hit
-    return hit[1]
+    return attempt
 
 
 def _break_contact(ctx: ContactContext, state: ContactState, limb: str) -> ContactAttempt:

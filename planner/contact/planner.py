@@ -201,12 +201,13 @@ def _after(
 
 def _footholds_taken(states: Sequence[ContactState], since: int) -> list[tuple[str, FloatArray]]:
     """(limb, position (3,)) of every contact made in ``states`` after state ``since``."""
-    return [
-        (c.limb, np.asarray(c.position, dtype=np.float64))
-        for d in range(since + 1, len(states))
-        for c in states[d].contacts
-        if states[d - 1].contact(c.limb) is None
-    ]
+    taken = []
+    for k in range(since, len(states) - 1):
+        limb = _made(states, k)
+        contact = None if limb is None else states[k + 1].contact(limb)
+        if contact is not None:
+            taken.append((contact.limb, np.asarray(contact.position, dtype=np.float64)))
+    return taken
 
 
 def _better(
