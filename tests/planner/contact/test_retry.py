@@ -192,17 +192,25 @@ def test_a_walk_blocked_short_of_its_guide_end_is_walked_on_once_then_starts_ove
 def test_rubbles_blocked_straight_walk_gets_through_avoiding_its_dead_end() -> None:
     """Walking diagonally across the rubble's tilted slabs along the straight line, the
     first walk puts a foot on a slab from which no foothold ahead is in reach: blocked. Walked
-    on from before, that foothold avoided, it gets to the goal along the same guide."""
-    result, walks = _plan_recording_walks(
-        "rubble", np.array([-0.3, 0.5, 0.0]), np.array([2.8, 2.5, 0.0]), 30.0
-    )
-    assert result.status is PlanStatus.SOLVED, result.message
-    assert len(walks) == 2
-    first, again = walks
-    assert first.result.stats.get("blocked") == 1, first.result.message
-    assert again.resumed and again.avoid and again.result.status is PlanStatus.SOLVED
-    np.testing.assert_array_equal(again.guide, first.guide)
-    _assert_avoided(again)
+    on from before, that foothold avoided, it gets to the goal along the same guide. Which
+    slab a foot takes moves with millimetres of the start (a start 1 mm back walks straight
+    through), so three starts a fraction of a millimetre apart are planned: every plan
+    solves, every resumed walk avoids what it was given, and at least one goes through the
+    dead end this way."""
+    through_dead_end = 0
+    for nudge in (0.0, 0.0005, 0.001):
+        result, walks = _plan_recording_walks(
+            "rubble", np.array([-0.3 + nudge, 0.5, 0.0]), np.array([2.8, 2.5, 0.0]), 30.0
+        )
+        assert result.status is PlanStatus.SOLVED, (nudge, result.message)
+        for walk in walks:
+            _assert_avoided(walk)
+        if len(walks) >= 2 and walks[0].result.stats.get("blocked") == 1:
+            first, again = walks[0], walks[1]
+            assert again.resumed and again.avoid
+            np.testing.assert_array_equal(again.guide, first.guide)
+            through_dead_end += again.result.status is PlanStatus.SOLVED
+    assert through_dead_end >= 1
 
 
 def test_a_walk_started_over_after_stalls_follows_a_guide_round_them(
