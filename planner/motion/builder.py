@@ -488,6 +488,7 @@ class _Segment:
     q: FloatArray
     landing_error: float
     cut_short: bool = False
+    stopped: bool = False  # stopped at a keyframe its swing collides in (``_track_segment``)
 
     @property
     def score(self) -> tuple[int, int]:
@@ -545,16 +546,34 @@ def _clearing_top(targets: _Targets, checker: KeyframeChecker, k: int) -> float:
     return best_top
 
 
+def _aim_swing(targets: _Targets, k: int, lift: float, guarded: bool, top: float) -> None:
+    """Set phase k's swing to an arc ``lift`` m high, or the clearing path ``top`` m high
+    when ``top`` > 0, its effector ``guarded`` against the scene or not."""
+    targets.lifts[k] = lift
+    targets.clearings.pop(k, None)
+    if top > 0.0:
+        targets.clearings[k] = top
+    if guarded:
+        targets.unguarded.discard(k)
+    else:
+        targets.unguarded.add(k)
+
+
+def _collides_at(check: KeyframeCheck, shapes: frozenset[str]) -> bool:
+    """Whether ``check`` collides with one of ``shapes`` the deepest, in the scene or into
+    another body part."""
+    return check.colliding and (
+        check.shape in shapes
+        or (check.self_pair is not None and not shapes.isdisjoint(check.self_pair))
+    )
+
+
 def _swing_at_fault(segment: _Segment, shapes: frozenset[str]) -> bool:
     """Whether the swinging limb (its collision ``shapes``) is what went wrong in
     ``segment``: it missed its landing, or one of its shapes is the deepest in a colliding
     keyframe, in the scene or into another body part (a foot brushing the stance foot)."""
     missed = segment.landing_error > tuning.LANDING_TOLERANCE
-    return missed or any(
-        c.colliding
-        and (c.shape in shapes or (c.self_pair is not None and not shapes.isdisjoint(c.self_pair)))
-        for c in segment.checks
-    )
+    return missed or any(_collides_at(c, shapes) for c in segment.checks)
 
 
 def _unclean(segment: _Segment, before: Keyframe | None, lag_matters: bool = True) -> str | None:
@@ -592,9 +611,12 @@ def _track_segment(
     times: Sequence[float],
     previous: float | None,
     until: Termination,
+    stop_at: frozenset[str] | None = None,
 ) -> _Segment:
     """Track from ``q_start`` (nq,) at time ``previous`` through the keyframe ``times`` (of
-    one phase); the effectors the phase lifts may stay as deep as they are at ``q_start``."""
+    one phase); the effectors the phase lifts may stay as deep as they are at ``q_start``.
+    With ``stop_at`` (the swinging limb's shapes), the track stops after the first keyframe
+    colliding with one of them (``stopped``; its landing is not measured)."""
     spec = targets.spec
     model = tracker.model
     q = np.array(q_start, dtype=np.float64)
@@ -623,6 +645,10 @@ def _track_segment(
         out.keyframes.append(
             Keyframe(t=t, q=q.copy(), contacts=tuple(c.limb for c in phase.stance))
         )
+        if stop_at is not None and _collides_at(check, stop_at):
+            out.stopped = True
+            out.q = q
+            return out
     out.q = q
     k = targets.phase_index(times[0]) if times else 0
     phase = spec.phases[k]
@@ -707,7 +733,10 @@ def build_motion(
     checked. A swing phase whose keyframes collide, or whose effector does not reach its
     landing, is tracked again from its start with the next higher arc of ``SWING_LIFTS``
     (2PAC section 7.2), a flight whose keyframes collide with its limbs tucked further
-    (``FLIGHT_TUCKS``), the best attempt kept. ``until`` is polled once per keyframe tracked
+    (``FLIGHT_TUCKS``), the best attempt kept. A swing attempt that is not the last stops at
+    the first keyframe its limb collides in (the next is tried as it would be after the
+    whole phase); only when no later attempt comes clean are the stopped ones tracked whole
+    and the best of all kept. ``until`` is polled once per keyframe tracked
     (a retried swing or flight polls again; a plan's work budget charges each poll): when it
     fires, the keyframes so far are returned and the report says ``cut_short``. With
     ``spec.q_end``, a motion not cut short ends exactly there (its last ``END_BLEND_S``
@@ -835,20 +864,40 @@ def _build_motion(
         best_attempt = attempts[0]
         best_top = 0.0
         entry = _entry_velocity(tracker.model, segments)
+        # per attempt made, its segment and its clearing path's top (0: none); an attempt
+        # that is not the last stops where its swing collides (a higher one is tried next,
+        # as it would be after the whole phase), and is tracked whole only if no later
+        # attempt comes clean
+        made: list[tuple[_Segment, float]] = []
+        stop_at = (
+            limb_shapes[swing.limb]
+            if swing is not None and not flight and len(attempts) > 1
+            else None
+        )
+        counted: dict[int, int] = {}  # QP fallbacks of each stopped attempt
         for n, (lift, guarded, clearing) in enumerate(attempts):
             if n and flight:
                 retried += 1
                 targets.tucks[k] = tuning.FLIGHT_TUCKS[n - 1]
             elif n:
                 retried += 1
-                targets.lifts[k] = lift
-                targets.clearings.pop(k, None)
-                if clearing:
-                    targets.clearings[k] = _clearing_top(targets, checker, k)
-                if not guarded:
-                    targets.unguarded.add(k)
+                _aim_swing(
+                    targets,
+                    k,
+                    lift,
+                    guarded,
+                    _clearing_top(targets, checker, k) if clearing else 0.0,
+                )
             tracker.reset(entry)
-            segment = _track_segment(tracker, checker, targets, q, times, previous, until)
+            fallbacks = tracker.fallbacks
+            last_try = n == len(attempts) - 1
+            segment = _track_segment(
+                tracker, checker, targets, q, times, previous, until, None if last_try else stop_at
+            )
+            made.append((segment, targets.clearings.get(k, 0.0)))
+            if segment.stopped:
+                counted[n] = tracker.fallbacks - fallbacks
+                continue
             if best is None or segment.score < best.score:
                 best, best_attempt = segment, (lift, guarded, clearing)
                 best_top = targets.clearings.get(k, 0.0)
@@ -856,6 +905,22 @@ def _build_motion(
                 break
             if swing is not None and not _swing_at_fault(segment, limb_shapes[swing.limb]):
                 break  # what collides is not the swinging limb: a higher arc cannot help
+        if counted and (best is None or best.score[0] != 0):
+            # no attempt came clean: the stopped ones are tracked whole, and the best of all
+            # is kept as if each had been tracked whole in turn
+            for n, fallbacks in counted.items():
+                lift, guarded, clearing = attempts[n]
+                _aim_swing(targets, k, lift, guarded, made[n][1])
+                tracker.fallbacks -= fallbacks
+                tracker.reset(entry)
+                made[n] = (
+                    _track_segment(tracker, checker, targets, q, times, previous, until),
+                    made[n][1],
+                )
+            best = None
+            for n, (segment, top) in enumerate(made):
+                if best is None or segment.score < best.score:
+                    best, best_attempt, best_top = segment, attempts[n], top
         assert best is not None
         if flight:
             level = int(best_attempt[0])
@@ -864,13 +929,8 @@ def _build_motion(
             else:
                 targets.tucks.pop(k, None)
         elif swing is not None:
-            targets.lifts[k] = best_attempt[0]
-            if best_attempt[1]:
-                targets.unguarded.discard(k)
-            if best_attempt[2]:
-                targets.clearings[k] = best_top
-            else:
-                targets.clearings.pop(k, None)
+            lift, guarded, clearing = best_attempt
+            _aim_swing(targets, k, lift, guarded, best_top if clearing else 0.0)
         last_key = segments[-1].keyframes[-1] if segments and segments[-1].keyframes else None
         segments.append(best)
         q = best.q

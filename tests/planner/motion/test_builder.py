@@ -11,6 +11,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.spatial.transform import Rotation
 
+from planner.contact.body import contact_placement
 from planner.contact.checks import make_contact
 from planner.contact.context import make_context
 from planner.contact.state import ContactState
@@ -20,7 +21,9 @@ from planner.motion.builder import build_motion
 from planner.motion.checker import KeyframeChecker
 from planner.motion.jump import JumpLeg, build_jumps
 from planner.motion.spec import MotionPhase, MotionSpec, Swing
-from planner.motion.tracker import speed_limits
+from planner.motion.tracker import WholeBodyTracker, speed_limits
+from planner.scene.builtin import STAIRS_RISE
+from planner.termination import never
 from tests.planner.contact.contact_helpers import character_and_data, scene
 from trajectory import BezierCurve, PiecewiseBezier
 
@@ -265,3 +268,89 @@ def test_a_swing_is_at_fault_when_its_limb_is_in_the_scene_or_in_another_body_pa
     assert not builder._swing_at_fault(segment(elsewhere), feet)
     assert not builder._swing_at_fault(segment(shallow), feet)
     assert not builder._swing_at_fault(segment(), feet)
+
+
+def _step_up_spec(end_x: float, rise: float) -> tuple[object, MotionSpec]:
+    """A humanoid standing on the floor 0.3 m before the stairs' first riser (x = 1 m) on
+    its right foot, its left foot swinging along a flat path (lift 0) to ``end_x`` m, ``rise``
+    m up, in 0.8 s; the COM still."""
+    character, data = character_and_data("humanoid")
+    stairs = scene("stairs")
+    ctx = make_context(stairs, character, data)
+    q = np.array(character.q_ref)
+    q[0] = 0.7
+    floor = next(
+        i
+        for i, s in enumerate(stairs.surfaces)
+        if s.normal[2] > 0.99 and bool(s.contains_projection(np.array([[0.7, 0.1, 0.0]]))[0])
+    )
+    right = make_contact(ctx, "right_foot", q, floor)
+    start = contact_placement(character, "left_foot", q, ctx.pin_data)
+    end = start.copy()
+    end[0, 3], end[2, 3] = end_x, start[2, 3] + rise
+    c0 = com_position(character.model, q)
+    curve = PiecewiseBezier((BezierCurve(np.stack([c0, c0]), 0.0, 0.8),))
+    swing = Swing("left_foot", start, end, 0.0)
+    return ctx, MotionSpec(q, (MotionPhase(0.0, 0.8, (right,), q, swing=swing),), curve, 30.0)
+
+
+def _tracking(ctx: object, spec: MotionSpec) -> tuple[object, object, object, list[float]]:
+    character = ctx.character  # type: ignore[attr-defined]
+    bvh = ctx.scene.collision.bvh  # type: ignore[attr-defined]
+    tracker = WholeBodyTracker(character, bvh)
+    checker = KeyframeChecker(character, bvh, (), tracker)
+    targets = builder._Targets(character, spec)
+    times = builder.phase_keyframe_times(0.0, 0.8, spec.rate, targets.break_list).tolist()
+    return tracker, checker, targets, times
+
+
+def test_a_swing_attempt_that_will_be_retried_stops_where_its_limb_collides() -> None:
+    """A foot stepping up onto the first tread along a flat path runs into the riser: tracked
+    with ``stop_at`` (the foot's shapes) the attempt stops at the first keyframe the foot
+    collides in, the keyframes before it clean, instead of tracking the whole phase it will
+    be tried again for; the build then keeps a higher arc that comes clean, tracked whole."""
+    ctx, spec = _step_up_spec(1.12, STAIRS_RISE)
+    tracker, checker, targets, times = _tracking(ctx, spec)
+    shapes = frozenset({"l_foot_0"})
+    q = np.array(spec.q_start)
+    stopped = builder._track_segment(tracker, checker, targets, q, times, None, never, shapes)  # type: ignore[arg-type]
+    assert stopped.stopped and 1 < len(stopped.keyframes) < len(times)
+    assert builder._collides_at(stopped.checks[-1], shapes)
+    assert not any(c.colliding for c in stopped.checks[:-1])
+    tracker.reset()  # type: ignore[attr-defined]
+    whole = builder._track_segment(tracker, checker, targets, q, times, None, never)  # type: ignore[arg-type]
+    assert not whole.stopped and len(whole.keyframes) == len(times)
+    assert whole.score[0] >= 1  # the whole attempt collides too: it would be retried
+    built = build_motion(ctx.character, ctx.scene.collision.bvh, spec)  # type: ignore[attr-defined]
+    assert built.report.complete and built.report.swings_raised >= 1
+    assert built.swing_lifts[0] > 0.0
+    assert len(built.keyframes) == len(times)
+
+
+def test_when_no_swing_attempt_comes_clean_the_stopped_ones_are_tracked_whole() -> None:
+    """A foot landing with its toe in the first riser collides on every attempt: each one
+    stopped early is tracked again whole, the best of all is kept (here the last, the
+    unguarded arc, which collides the least), every keyframe of the phase there, and the
+    report says the motion collides and how many times the swing was raised."""
+    ctx, spec = _step_up_spec(0.98, 0.0)
+    calls: list[tuple[bool, int]] = []
+    real = builder._track_segment
+
+    def counting(*args: object, **kwargs: object) -> builder._Segment:
+        segment = real(*args, **kwargs)  # type: ignore[arg-type]
+        calls.append((segment.stopped, len(segment.keyframes)))
+        return segment
+
+    builder._track_segment = counting  # type: ignore[assignment]
+    try:
+        built = build_motion(ctx.character, ctx.scene.collision.bvh, spec)  # type: ignore[attr-defined]
+    finally:
+        builder._track_segment = real  # type: ignore[assignment]
+    attempts = len(tuning.SWING_LIFTS) + 3  # lift 0, the lifts, clearing path, unguarded
+    assert built.report.swings_raised == attempts - 1
+    stopped = [n for n, (was_stopped, _) in enumerate(calls) if was_stopped]
+    assert stopped and len(calls) == attempts + len(stopped)
+    assert all(not was_stopped for was_stopped, _ in calls[attempts:])  # tracked whole
+    assert not built.report.complete and built.report.colliding_keyframes > 0
+    whole = {count for _, count in calls[attempts - 1 :]}
+    assert whole == {len(built.keyframes)}
