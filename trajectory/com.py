@@ -475,12 +475,19 @@ def _window_curve(
     after = att[1] if len(att) > 1 else goal
     # where the window may be cut: the next phase's equilibrium and kinematic sets (once)
     target_set = None if last else stack([w.eqs[j + len(att)], w.kins[j + len(att)]])
-    for extra in range(MAX_EXTRA_ATTRACTORS + 1):
+    # most extra points first: the curve that lingers most is nearly always the shortest
+    # (the 7 or 8 extra points of 128 windows of six plans, walks, stairs, rubble), and a
+    # candidate is dropped as soon as it would end after the best so far; of equals, the
+    # one with the fewest extra points is kept
+    for extra in range(MAX_EXTRA_ATTRACTORS, -1, -1):
         fractions = np.arange(1, extra + 1) / (extra + 1)
         middle = att[0] + fractions[:, None] * (after - att[0])
         points = np.vstack([att[:1], middle, att[1:]])
-        found = _stretched_curve(w, state, points, att, goal, j, t, phase_start, target_set)
-        if found is not None and (best is None or found[0].t1 < best[0].t1):
+        no_later = math.inf if best is None else best[0].t1
+        found = _stretched_curve(
+            w, state, points, att, goal, j, t, phase_start, target_set, no_later
+        )
+        if found is not None and (best is None or found[0].t1 <= best[0].t1):
             best = found
     return best
 
@@ -499,11 +506,14 @@ def _stretched_curve(
     t: float,
     phase_start: float,
     target_set: Halfspaces | None,
+    no_later: float = math.inf,
 ) -> tuple[BezierCurve, float, list[float]] | None:
     """The window's curve through control points ``points`` (its attractors ``att`` among
     them), slowed down until each phase gets its minimum duration; None beyond
     ``max_stretch`` times the nominal duration. ``target_set``: the sets of the phase after
-    the window's last attractor, where the curve is cut (None: the last window, not cut)."""
+    the window's last attractor, where the curve is cut (None: the last window, not cut).
+    None as soon as the curve would end after ``no_later`` s (slowed more, it would only end
+    later)."""
     last = target_set is None
     m = len(att)
     ctrl = np.vstack([state.position, points, goal])
@@ -511,6 +521,8 @@ def _stretched_curve(
     nominal = max(w.min_window, w.seconds_per_metre * length)
     duration = nominal
     for _ in range(8):
+        if t + duration > no_later:
+            return None
         curve = attractor_curve(state, BoundaryState(goal), points, duration, t)
         cut = curve.t1
         if target_set is not None:

@@ -114,6 +114,57 @@ def test_every_phase_gets_its_minimum_duration(
         np.testing.assert_allclose(a.derivative(2)(a.t1), b.derivative(2)(b.t0), atol=1e-5)
 
 
+@pytest.mark.parametrize(
+    ("swing", "n_phases", "cost"),
+    [(0.3, 5, "tired"), (0.3, 9, "distance"), (0.45, 7, "tired"), (0.6, 9, "tired")],
+)
+def test_a_window_keeps_the_shortest_candidate_as_if_every_one_were_slowed_in_full(
+    swing: float, n_phases: int, cost: str
+) -> None:
+    """Each window tries its candidates (extra control points after the first attractor)
+    from the most to the fewest and drops one as soon as it would end after the best so far:
+    the curve kept is bit for bit the one of slowing every candidate in full, fewest extra
+    points first, and keeping the strictly shortest."""
+    from trajectory import com
+
+    real = com._window_curve
+    windows = []
+
+    def checked(w, state, att, goal, j, t, phase_start, last):  # type: ignore[no-untyped-def]
+        found = real(w, state, att, goal, j, t, phase_start, last)
+        after = att[1] if len(att) > 1 else goal
+        sets = None if last else com.stack([w.eqs[j + len(att)], w.kins[j + len(att)]])
+        best = None
+        for extra in range(com.MAX_EXTRA_ATTRACTORS + 1):
+            middle = att[0] + (np.arange(1, extra + 1) / (extra + 1))[:, None] * (after - att[0])
+            points = np.vstack([att[:1], middle, att[1:]])
+            full = com._stretched_curve(w, state, points, att, goal, j, t, phase_start, sets)
+            if full is not None and (best is None or full[0].t1 < best[0].t1):
+                best = full
+        assert (found is None) == (best is None)
+        if found is not None and best is not None:
+            assert found[0].t1 == best[0].t1 and found[1] == best[1] and found[2] == best[2]
+            assert np.array_equal(found[0].control_points, best[0].control_points)
+        windows.append(found)
+        return found
+
+    phases = walking_phases(n_phases)
+    centres = [np.vstack([c.points for c in p.contacts]).mean(axis=0) for p in phases]
+    targets = [centres[min(j + 2, n_phases - 1)] + [0.0, 0.0, 0.9] for j in range(n_phases - 1)]
+    with pytest.MonkeyPatch.context() as patched:
+        patched.setattr(com, "_window_curve", checked)
+        trajectory.plan_com_trajectory(
+            phases,
+            np.array([0.0, 0.0, 0.9]),
+            n_checks=0,
+            cost=TransitionCost(cost),  # type: ignore[arg-type]
+            targets=targets,
+            min_durations=[swing if j % 2 else 0.1 for j in range(n_phases)],
+            max_stretch=40.0,
+        )
+    assert any(found is not None for found in windows)
+
+
 def test_tired_transition_points_spread_over_the_stance_and_stay_2pac() -> None:
     """With "tired" aimed at the phase after next, the two transition points around a
     single-support phase differ (the COM travels while the foot swings), so no window
