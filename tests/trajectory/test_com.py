@@ -126,6 +126,7 @@ def test_a_window_keeps_the_shortest_candidate_as_if_every_one_were_slowed_in_fu
     the curve kept is bit for bit the one of slowing every candidate in full, fewest extra
     points first, and keeping the strictly shortest."""
     from trajectory import com
+    from trajectory.polytope import stack
 
     real = com._window_curve
     windows = []
@@ -133,7 +134,7 @@ def test_a_window_keeps_the_shortest_candidate_as_if_every_one_were_slowed_in_fu
     def checked(w, state, att, goal, j, t, phase_start, last):  # type: ignore[no-untyped-def]
         found = real(w, state, att, goal, j, t, phase_start, last)
         after = att[1] if len(att) > 1 else goal
-        sets = None if last else com.stack([w.eqs[j + len(att)], w.kins[j + len(att)]])
+        sets = None if last else stack([w.eqs[j + len(att)], w.kins[j + len(att)]])
         best = None
         for extra in range(com.MAX_EXTRA_ATTRACTORS + 1):
             middle = att[0] + (np.arange(1, extra + 1) / (extra + 1))[:, None] * (after - att[0])

@@ -9,6 +9,7 @@ import itertools
 
 import numpy as np
 import pinocchio as pin
+import pytest
 from scipy.spatial.transform import Rotation
 
 from planner.contact.body import contact_placement
@@ -341,11 +342,9 @@ def test_when_no_swing_attempt_comes_clean_the_stopped_ones_are_tracked_whole() 
         calls.append((segment.stopped, len(segment.keyframes)))
         return segment
 
-    builder._track_segment = counting  # type: ignore[assignment]
-    try:
+    with pytest.MonkeyPatch.context() as patched:
+        patched.setattr(builder, "_track_segment", counting)
         built = build_motion(ctx.character, ctx.scene.collision.bvh, spec)  # type: ignore[attr-defined]
-    finally:
-        builder._track_segment = real  # type: ignore[assignment]
     attempts = len(tuning.SWING_LIFTS) + 3  # lift 0, the lifts, clearing path, unguarded
     assert built.report.swings_raised == attempts - 1
     stopped = [n for n, (was_stopped, _) in enumerate(calls) if was_stopped]
