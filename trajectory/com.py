@@ -476,7 +476,7 @@ def _window_curve(
     # where the window may be cut: the next phase's equilibrium and kinematic sets (once)
     target_set = None if last else stack([w.eqs[j + len(att)], w.kins[j + len(att)]])
     # most extra points first: the curve that lingers most is nearly always the shortest
-    # (the 7 or 8 extra points of 128 windows of six plans, walks, stairs, rubble), and a
+    # (7 or 8 extra points in all 114 windows of six plans: walks, stairs, rubble), and a
     # candidate is dropped as soon as it would end after the best so far; of equals, the
     # one with the fewest extra points is kept
     for extra in range(MAX_EXTRA_ATTRACTORS, -1, -1):
