@@ -907,8 +907,18 @@ def _build_motion(
                 break  # what collides is not the swinging limb: a higher arc cannot help
         if counted and (best is None or best.score[0] != 0):
             # no attempt came clean: the stopped ones are tracked whole, and the best of all
-            # is kept as if each had been tracked whole in turn
+            # is kept as if each had been tracked whole in turn (the first of the lowest
+            # score); one whose stopped part already collides as often as an earlier
+            # attempt's whole score, or more often than a later one's, cannot be it
             for n, fallbacks in counted.items():
+                floor = (sum(c.colliding for c in made[n][0].checks), 0)
+                if any(
+                    not made[m][0].stopped and made[m][0].score <= floor for m in range(n)
+                ) or any(
+                    not made[m][0].stopped and made[m][0].score < floor
+                    for m in range(n + 1, len(made))
+                ):
+                    continue
                 lift, guarded, clearing = attempts[n]
                 _aim_swing(targets, k, lift, guarded, made[n][1])
                 tracker.fallbacks -= fallbacks
@@ -919,7 +929,7 @@ def _build_motion(
                 )
             best = None
             for n, (segment, top) in enumerate(made):
-                if best is None or segment.score < best.score:
+                if not segment.stopped and (best is None or segment.score < best.score):
                     best, best_attempt, best_top = segment, attempts[n], top
         assert best is not None
         if flight:

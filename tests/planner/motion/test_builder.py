@@ -329,10 +329,11 @@ def test_a_swing_attempt_that_will_be_retried_stops_where_its_limb_collides() ->
 
 
 def test_when_no_swing_attempt_comes_clean_the_stopped_ones_are_tracked_whole() -> None:
-    """A foot landing with its toe in the first riser collides on every attempt: each one
-    stopped early is tracked again whole, the best of all is kept (here the last, the
-    unguarded arc, which collides the least), every keyframe of the phase there, and the
-    report says the motion collides and how many times the swing was raised."""
+    """A foot landing with its toe in the first riser collides on every attempt: the ones
+    stopped early are tracked again whole (unless what they collided in already rules them
+    out), the best of all is kept (here the last, the unguarded arc, which collides the
+    least), every keyframe of the phase there, and the report says the motion collides and
+    how many times the swing was raised."""
     ctx, spec = _step_up_spec(0.98, 0.0)
     calls: list[tuple[bool, int]] = []
     real = builder._track_segment
@@ -348,7 +349,7 @@ def test_when_no_swing_attempt_comes_clean_the_stopped_ones_are_tracked_whole() 
     attempts = len(tuning.SWING_LIFTS) + 3  # lift 0, the lifts, clearing path, unguarded
     assert built.report.swings_raised == attempts - 1
     stopped = [n for n, (was_stopped, _) in enumerate(calls) if was_stopped]
-    assert stopped and len(calls) == attempts + len(stopped)
+    assert stopped and attempts < len(calls) <= attempts + len(stopped)
     assert all(not was_stopped for was_stopped, _ in calls[attempts:])  # tracked whole
     assert not built.report.complete and built.report.colliding_keyframes > 0
     whole = {count for _, count in calls[attempts - 1 :]}
