@@ -482,16 +482,25 @@ class PairBroadPhase:
 
     Two filters, both exact. Each shape keeps an odometer, the sum over queries of how far
     any of its points can have moved since the previous one (centre shift plus rotation
-    change times its bounding radius): a pair whose last known distance (:meth:`remember`,
-    or the bounding-capsule gap measured here) minus what both odometers ran since then is
-    above the margin is skipped outright. The others are tested on bounding capsules
-    (:func:`bounding_segment`); those farther apart than the margin remember their capsule
-    gap. One instance per sequence of queries (it remembers)."""
+    change times its bounding radius), in the frame of a shape on the root joint (two
+    shapes' distance is the same in any frame, and the trunk's shapes stay put in it while
+    the body walks; in the world frame when no shape is on the root joint): a pair whose
+    last known distance (:meth:`remember`, or the bounding-capsule gap measured here) minus
+    what both odometers ran since then is above the margin is skipped outright. The others
+    are tested on bounding capsules (:func:`bounding_segment`); those farther apart than the
+    margin remember their capsule gap. One instance per sequence of queries (it
+    remembers)."""
 
     def __init__(self, geometry: Any) -> None:
         shapes = _pair_shapes(geometry)
         self.pair_array, self.ends_a, self.ends_b, self.radii_sum = shapes[:4]
         self.middles, self.local_points, self.spheres = shapes[4:]
+        # the frame the odometers run in: a shape on the root joint (the trunk), whose
+        # shapes then do not move while the body walks; the world when there is none
+        self.frame = next(
+            (i for i, o in enumerate(geometry.geometryObjects) if int(o.parentJoint) == 1),
+            None,
+        )
         self.odometer = np.zeros(len(self.spheres))
         self.last: tuple[FloatArray, FloatArray] | None = None
         # the poses of the last query and the capsule points placed there (G, 3, 3)
@@ -520,14 +529,18 @@ class PairBroadPhase:
             rot, trans = poses
             world = np.matmul(self.local_points, rot.transpose(0, 2, 1))  # R p for each point
             world += trans[:, None, :]
-            centres = world[:, 0]
+            centres, turns = world[:, 0], rot
+            if self.frame is not None:  # placements in the trunk shape's frame
+                frame_rot = rot[self.frame]
+                centres = (centres - trans[self.frame]) @ frame_rot
+                turns = np.einsum("ba,gbc->gac", frame_rot, rot)
             if self.last is not None:
                 last_rot, last_centres = self.last
-                turned = rot - last_rot
+                turned = turns - last_rot
                 moved = centres - last_centres
                 self.odometer += np.sqrt(np.einsum("ga,ga->g", moved, moved))
                 self.odometer += np.sqrt(np.einsum("gab,gab->g", turned, turned)) * self.spheres
-            self.last = (rot, centres)
+            self.last = (turns, centres)
             self._placed = (poses, world)
         run = self.odometer[self.pair_array] - self.known_odometers
         open_ = np.flatnonzero(self.known - (run[:, 0] + run[:, 1]) <= margin)

@@ -146,3 +146,45 @@ def test_pairs_remembered_together_as_one_by_one() -> None:
         together.remember_all(near, measured)
         assert np.array_equal(alone.known, together.known)
         assert np.array_equal(alone.known_odometers, together.known_odometers)
+
+
+@pytest.mark.parametrize("cid", ["talos", "hyq"])
+def test_the_pair_broad_phase_misses_no_pair_within_its_margin(cid: str) -> None:
+    """On a walk that moves the root and every joint, every declared pair within 5 cm (all
+    pairs' distances computed) is among those the broad phase calls near, its odometers run
+    in the trunk's frame; a body only carried along (the root moving, the joints still)
+    tests no pair it once measured farther than the margin again."""
+    character = get_character(cid)
+    model, geometry = character.model, character.motion_geometry
+    data, gdata = model.createData(), pin.GeometryData(geometry)
+    for request in gdata.distanceRequests:
+        request.enable_signed_distance = True
+    broad = PairBroadPhase(geometry)
+    assert broad.frame is not None  # a shape rides the root joint
+    margin = 0.05
+
+    def distances(q: np.ndarray) -> np.ndarray:
+        pin.forwardKinematics(model, data, q)
+        pin.updateGeometryPlacements(model, data, geometry, gdata)
+        pin.computeDistances(geometry, gdata)
+        return np.array([float(r.min_distance) for r in gdata.distanceResults])
+
+    walk = _walk(character, 40, 3)
+    for q in walk:
+        d = distances(q)
+        near = broad.near(gdata, margin)
+        assert set(np.flatnonzero(d <= margin).tolist()) <= set(near)
+        broad.remember_all(near, [float(d[k]) for k in near])
+    carried = broad.near(gdata, margin)  # every pair measured at the last configuration
+    broad.remember_all(carried, [float(d[k]) for k in carried])
+    q = walk[-1].copy()
+    for step in range(1, 11):
+        q[:3] = walk[-1][:3] + step * np.array([0.03, 0.01, 0.0])
+        yaw = 0.02 * step
+        q[3:7] = pin.Quaternion(
+            pin.Quaternion(walk[-1][3:7]).toRotationMatrix() @ pin.rpy.rpyToMatrix(0, 0, yaw)
+        ).coeffs()
+        d = distances(q)
+        near = broad.near(gdata, margin)
+        assert set(near) == set(np.flatnonzero(d <= margin).tolist()) & set(carried)
+        assert set(near) <= {k for k in carried if d[k] <= margin}
