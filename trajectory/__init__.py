@@ -25,11 +25,13 @@ from trajectory.dynamic import (
     solve_dynamic_com,
 )
 from trajectory.equilibrium import (
+    EQ1_TOLERANCE,
     EquilibriumMargin,
     equilibrium_halfspaces,
     equilibrium_margin,
     equilibrium_polygon,
     equilibrium_polytope,
+    holds_at,
     is_static_equilibrium,
 )
 from trajectory.kinematics import EffectorConstraint, kinematic_polytope, to_world
@@ -44,6 +46,7 @@ from trajectory.transition import (
 )
 
 __all__ = [
+    "EQ1_TOLERANCE",
     "BezierCurve",
     "BoundaryState",
     "ComTrajectory",
@@ -69,6 +72,7 @@ __all__ = [
     "equilibrium_polygon",
     "equilibrium_polytope",
     "friction_rays",
+    "holds_at",
     "is_static_equilibrium",
     "kinematic_polytope",
     "multi_attractor_curve",

@@ -8,9 +8,9 @@ beta >= 0 (generator weights). The force rows are linear in the control points; 
 c x m (a - g) is bilinear, so it is linearised about the previous iterate (c_, a_):
 c x a ~= c_ x a + c x a_ - c_ x a_, and the convex QP is solved again about its answer
 (sequential convex programming). Weights carry a margin (a fraction of the body weight per
-generator) that absorbs the linearisation error; the answer is accepted only when the exact
-Eq. 1 holds at every collocation time (checked with the same robustness LP as
-``validate_dynamics``).
+generator) that absorbs the linearisation error; the answer is accepted only when the
+nonlinear Eq. 1 holds at every collocation time (within ``EQ1_TOLERANCE``, checked with the
+same robustness LP as ``validate_dynamics``: ``trajectory.equilibrium.holds_at``).
 
 Units: metres, seconds, world frame z up; weights are in body weights (m g) for
 conditioning. The QP is sparse and solved by Clarabel (interior point, deterministic). The
@@ -36,7 +36,7 @@ from trajectory._types import GRAVITY, BoolArray, FloatArray, as_float_array
 from trajectory.bezier import BezierCurve, PiecewiseBezier, bernstein
 from trajectory.com import validate_dynamics
 from trajectory.contacts import ContactPhase
-from trajectory.equilibrium import margins_at
+from trajectory.equilibrium import holds_at
 from trajectory.polytope import Halfspaces
 
 P = ParamSpec("P")
@@ -107,8 +107,8 @@ and two between)."""
 @dataclass(frozen=True, slots=True, eq=False)
 class DynamicCom:
     """A dynamically consistent COM: ``curve`` (one segment per phase), ``phase_times``
-    (n + 1,) s, ``iterations`` used, and ``valid`` True when Eq. 1 held exactly at every
-    collocation time of the last iterate."""
+    (n + 1,) s, ``iterations`` used, and ``valid`` True when Eq. 1 held (within
+    ``EQ1_TOLERANCE``) at every collocation time of the last iterate."""
 
     curve: PiecewiseBezier
     phase_times: FloatArray
@@ -202,7 +202,7 @@ def solve_dynamic_com(
     reference_times[j] to reference_times[j + 1] (n + 1 times, s; the reference is compared
     phase by phase at the same fractions of each phase). None when a
     QP is infeasible (the outcome's ``blame`` then says which phases); ``valid`` False when
-    the linearisation did not settle into an exactly valid curve within
+    the linearisation did not settle into a valid curve within
     ``settings.iterations`` rounds. ``before`` / ``after`` : segments (of
     the same degree) the curve joins C2 instead of starting / ending at rest: it starts where
     ``before`` ends (``start`` must be that point) and ends where ``after`` starts (``end``
@@ -389,9 +389,10 @@ def _solve_rounds(
 
 
 def _passes(phase: ContactPhase, samples: tuple[FloatArray, FloatArray]) -> bool:
-    """Whether Eq. 1 holds exactly at each of a phase's collocation samples (positions and
-    accelerations, (s, 3) each)."""
-    return bool(margins_at(phase, *samples)[0].all())
+    """Whether Eq. 1 holds at each of a phase's collocation samples (positions and
+    accelerations, (s, 3) each), within ``EQ1_TOLERANCE`` (the tolerance of
+    ``validate_dynamics``)."""
+    return bool(holds_at(phase, *samples)[0].all())
 
 
 def _failing_phases(

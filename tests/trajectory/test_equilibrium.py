@@ -276,3 +276,55 @@ def test_support_point_lp_agrees_with_highs(seed: int, k: int) -> None:
         assert got is not None
         assert abs(float(theta @ got) - float(theta @ want)) <= 1e-8
         assert ours.last_bound_active == reference.last_bound_active
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), k=st.integers(1, 4))
+def test_holds_at_is_the_margin_within_the_tolerance(seed: int, k: int) -> None:
+    """Where weights give the wrench (a finite margin), a sample holds Eq. 1 exactly when its
+    margin is at least -EQ1_TOLERANCE times the mass; with no tolerance, when it is feasible."""
+    rng = np.random.default_rng(seed)
+    phase = random_phase(rng, k)
+    pts = np.vstack([c.points for c in phase.contacts]).mean(axis=0)
+    coms = np.column_stack([pts[:2] + rng.uniform(-0.6, 0.6, (12, 2)), rng.uniform(0.5, 1.2, 12)])
+    accs = rng.uniform(-4.0, 4.0, (12, 3)) * (rng.random((12, 1)) < 0.7)
+    feasible, margins = equilibrium.margins_at(phase, coms, accs)
+    holds, same = trajectory.holds_at(phase, coms, accs)
+    np.testing.assert_array_equal(same, margins)
+    finite = np.isfinite(margins)
+    limit = trajectory.EQ1_TOLERANCE * phase.mass
+    np.testing.assert_array_equal(holds[finite], (feasible | (margins >= -limit))[finite])
+    exact, _ = trajectory.holds_at(phase, coms, accs, tolerance=0.0)
+    np.testing.assert_array_equal(exact[finite], feasible[finite])
+
+
+def _two_point_feet() -> ContactPhase:
+    """Two point feet 0.6 m apart on level ground (a trot's diagonal): a cone of rank 5, no
+    torque about the line between them."""
+    up = np.array([0.0, 0.0, 1.0])
+    feet = [np.array([[0.3, 0.2, 0.0]]), np.array([[-0.3, -0.2, 0.0]])]
+    return ContactPhase([Contact(points=p, normal=up, mu=0.7) for p in feet], mass=70.0)
+
+
+@pytest.mark.parametrize("offset", [0.0, 2e-6, -2e-6])
+def test_two_point_feet_hold_a_com_off_their_line_by_round_off(offset: float) -> None:
+    """A still COM above the line between two point feet holds Eq. 1; off it by micrometres
+    (a wrench no weights give, margin -inf) it holds within the tolerance: the torque about
+    the line, m g times the offset, is within EQ1_TOLERANCE times the mass of the cone."""
+    phase = _two_point_feet()
+    across = np.array([-0.2, 0.3, 0.0]) / np.hypot(0.2, 0.3)
+    com = np.array([0.06, 0.04, 0.5]) + offset * across
+    holds, margins = trajectory.holds_at(phase, com[None], np.zeros((1, 3)))
+    assert holds[0]
+    assert np.isfinite(margins[0]) == (offset == 0.0)
+
+
+@pytest.mark.parametrize("offset", [1e-3, -1e-3])
+def test_two_point_feet_do_not_hold_a_com_a_millimetre_off_their_line(offset: float) -> None:
+    """A millimetre off the line, the torque about it (0.7 N m for 70 kg) is far beyond the
+    tolerance: Eq. 1 does not hold, with or without it."""
+    phase = _two_point_feet()
+    across = np.array([-0.2, 0.3, 0.0]) / np.hypot(0.2, 0.3)
+    com = np.array([0.06, 0.04, 0.5]) + offset * across
+    holds, margins = trajectory.holds_at(phase, com[None], np.zeros((1, 3)))
+    assert not holds[0] and margins[0] == -np.inf

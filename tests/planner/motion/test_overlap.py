@@ -88,15 +88,15 @@ def test_an_overlapped_walk_has_two_legs_in_the_air_at_once() -> None:
     assert len(motion.phases) == len(motion.states)
     for a, b in zip(motion.phases, motion.phases[1:], strict=False):
         assert len({c.limb for c in a.contacts} ^ {c.limb for c in b.contacts}) == 1
-    # Eq. 1 holds at every collocation time of every phase, two legs on the ground or more,
-    # and at nearly every time the report checks between them
+    # Eq. 1 holds (within trajectory.EQ1_TOLERANCE) at every collocation time of every phase,
+    # two legs on the ground or more, and at nearly every time the report checks between them
     settings = trajectory.DynamicSettings(sample_spacing=tuning.OVERLAP_SAMPLE_SPACING)
     for phase, segment in zip(motion.phases, motion.com, strict=True):
         piece = trajectory.BezierCurve(segment.control_points, segment.t0, segment.t1)
         times = np.linspace(segment.t0, segment.t1, settings.phase_samples(piece.t1 - piece.t0))
         wrench_phase = contact_phase(character, ContactState(motion.states[0].q, phase.contacts))
-        for c, a in zip(piece(times), piece.derivative(2)(times), strict=True):
-            assert trajectory.equilibrium_margin(wrench_phase, c, a).feasible
+        holds, _ = trajectory.holds_at(wrench_phase, piece(times), piece.derivative(2)(times))
+        assert holds.all()
     validity = [r["fraction_valid"] for r in motion.report["dynamic_validity"]]
     assert float(np.mean(validity)) >= 0.97
     model = character.model
