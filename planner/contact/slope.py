@@ -66,19 +66,18 @@ def terrain_fit(
     ahead = np.array([math.cos(yaw), math.sin(yaw), 0.0])
     side = np.array([-ahead[1], ahead[0], 0.0])
     top = pose[:3, 3] + np.array([0.0, 0.0, _CEILING])
-    along, heights = [], []
-    for u in np.linspace(-half_length, half_length, _SAMPLES_ALONG):
-        found = [
-            scene.height_below(top + u * ahead + v * side) for v in (-half_width, 0.0, half_width)
-        ]
-        known = [h for h in found if h is not None]
-        if known:
-            along.append(u)
-            heights.append(max(known))
-    if len(along) < 2:
+    us = np.linspace(-half_length, half_length, _SAMPLES_ALONG)
+    across = np.array([-half_width, 0.0, half_width])
+    # (samples along, 3 across): the highest ground across at each sample along
+    points = (top + us[:, None, None] * ahead) + across[None, :, None] * side
+    found = scene.heights_below(points.reshape(-1, 3)).reshape(len(us), len(across))
+    known = ~np.isnan(found).all(axis=1)
+    if int(known.sum()) < 2:
         return None
-    slope, height = np.polyfit(np.asarray(along), np.asarray(heights), 1)
-    residue = np.asarray(heights) - (height + slope * np.asarray(along))
+    along = us[known]
+    heights = np.nanmax(found[known], axis=1)
+    slope, height = np.polyfit(along, heights, 1)
+    residue = heights - (height + slope * along)
     return float(height), float(slope), float(np.max(np.abs(residue)))
 
 

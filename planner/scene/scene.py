@@ -83,6 +83,47 @@ class Scene:
         heights = heights[heights <= pz + 1e-9]
         return float(heights.max()) if len(heights) else None
 
+    def heights_below(self, points: FloatArray) -> FloatArray:
+        """:meth:`height_below` of each of (n, 3) points (n,), nan where nothing is below."""
+        return _heights_below(self, points)
+
+
+def _heights_below(scene: Scene, points: FloatArray) -> FloatArray:
+    """:meth:`Scene.height_below` of each of (n, 3) points at once, nan where nothing is
+    below: the faces whose boxes the points' span meets are picked once, and each point is
+    then tested against those (the same arithmetic, point by point, as one call each)."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    out = np.full(len(pts), np.nan)
+    if len(pts) == 0:
+        return out
+    lo, hi, tri = _vertical_ray_data(scene)
+    span = (
+        (lo[:, 0] <= pts[:, 0].max())
+        & (pts[:, 0].min() <= hi[:, 0])
+        & (lo[:, 1] <= pts[:, 1].max())
+        & (pts[:, 1].min() <= hi[:, 1])
+    )
+    if not np.any(span):
+        return out
+    lo, hi, t = lo[span], hi[span], tri[span]
+    px, py = pts[:, 0:1], pts[:, 1:2]  # (n, 1) against (k,) faces
+    near = (lo[:, 0] <= px) & (px <= hi[:, 0]) & (lo[:, 1] <= py) & (py <= hi[:, 1])
+    a, b, c = t[:, 0], t[:, 1], t[:, 2]
+    v0, v1 = b[:, :2] - a[:, :2], c[:, :2] - a[:, :2]
+    v2x, v2y = px - a[:, 0], py - a[:, 1]  # (n, k)
+    den = v0[:, 0] * v1[:, 1] - v1[:, 0] * v0[:, 1]
+    flat = np.abs(den) > 1e-12
+    den = np.where(flat, den, 1.0)
+    wb = (v2x * v1[:, 1] - v1[:, 0] * v2y) / den
+    wc = (v0[:, 0] * v2y - v2x * v0[:, 1]) / den
+    wa = 1.0 - wb - wc
+    hit = near & flat & (wa >= -1e-12) & (wb >= -1e-12) & (wc >= -1e-12)
+    heights = wa * a[:, 2] + wb * b[:, 2] + wc * c[:, 2]
+    hit &= heights <= pts[:, 2:3] + 1e-9
+    found = hit.any(axis=1)
+    out[found] = np.where(hit, heights, -np.inf)[found].max(axis=1)
+    return out
+
 
 def _vertical_crossings(scene: Scene, point: FloatArray) -> FloatArray:
     """Heights (k,) where the vertical line through ``point`` (3,) crosses a face of

@@ -255,3 +255,24 @@ def test_height_below_is_the_top_underneath(x: float, y: float, z: float) -> Non
         assert got == pytest.approx(0.0, abs=1e-9)
     assert _BOX_SCENE.height_below(np.array([x + 10.0, y, z])) is None
     assert _BOX_SCENE.height_below(np.array([x, y, -0.5])) is None  # under the slab
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    name=st.sampled_from(["stairs", "rubble", "climbing_wall", "flat"]),
+    seed=st.integers(0, 2**31 - 1),
+)
+def test_heights_below_at_once_are_those_of_each_point(
+    builtin_scenes, name: str, seed: int
+) -> None:
+    """heights_below answers for many points exactly what height_below does point by point
+    (nan where it says None): over the scene, beside it, under it and above it."""
+    scene = builtin_scenes[name]
+    rng = np.random.default_rng(seed)
+    low, high = scene.vertices.min(axis=0), scene.vertices.max(axis=0)
+    points = rng.uniform(low - 0.3, high + 0.5, (40, 3))
+    at_once = scene.heights_below(points)
+    for point, got in zip(points, at_once, strict=True):
+        one = scene.height_below(point)
+        assert (one is None and np.isnan(got)) or one == got
+    assert scene.heights_below(np.zeros((0, 3))).shape == (0,)
