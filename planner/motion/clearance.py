@@ -615,37 +615,34 @@ class SelfClearance(Limit):  # type: ignore[misc]
         near = self.broad.near_at(poses, tuning.INFLUENCE_DISTANCE)
         # per pair within the influence distance: its joints, witness points, normal (from
         # a to b) and distance; every pair's distance is remembered after the loop
+        influence = tuning.INFLUENCE_DISTANCE
+        compute, geometry = pin.computeDistance, self.geometry
+        measured: list[float] = []
+        inside: list[tuple[int, Any]] = []  # (pair, its distance result) within the influence
+        for k in near:
+            result = compute(geometry, geometry_data, k)
+            d = result.min_distance
+            measured.append(d)
+            if d <= influence:
+                inside.append((k, result))
+        self.broad.remember_all(near, measured)
+        self.rows = len(inside)
+        if not inside:
+            return None
+        pairs, joint_of = self.pairs, self.joints
         joints: list[int] = []
         points: list[FloatArray] = []
         normals: list[FloatArray] = []
-        distances: list[float] = []
-        measured: list[float] = []
-        influence = tuning.INFLUENCE_DISTANCE
-        compute, geometry, results = pin.computeDistance, self.geometry, None
-        pairs, joint_of = self.pairs, self.joints
-        for k in near:
-            compute(geometry, geometry_data, k)
-            if results is None:
-                results = geometry_data.distanceResults
-            result = results[k]
-            d = float(result.min_distance)
-            measured.append(d)
-            if d > influence:
-                continue
+        for k, result in inside:
             a, b = pairs[k]
             joints += [joint_of[a], joint_of[b]]
             points += [result.getNearestPoint1(), result.getNearestPoint2()]
             normal = result.normal
             normals += [normal, normal]
-            distances.append(d)
-        self.broad.remember_all(near, measured)
-        self.rows = len(distances)
-        if not distances:
-            return None
         speeds = jacobians.along(
             joints, np.array(points, dtype=np.float64), np.array(normals, dtype=np.float64)
         )
-        gap = np.array(distances)
+        gap = np.array([result.min_distance for _, result in inside], dtype=np.float64)
         return _damper_rows(
             speeds[1::2] - speeds[0::2], gap, np.full(len(gap), tuning.SECURITY_DISTANCE)
         )
