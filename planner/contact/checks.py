@@ -165,6 +165,12 @@ def _collide(ctx: ContactContext, geometry: Any, matrix: FloatArray) -> bool:
     hit: bool = ctx.base_world._collide(geometry, matrix)
     if hit or not ctx.obstacle_geometry:
         return bool(hit)
+    return _hits_obstacle(ctx, geometry, matrix)
+
+
+def _hits_obstacle(ctx: ContactContext, geometry: Any, matrix: FloatArray) -> bool:
+    """Whether a coal ``geometry`` at the world ``matrix`` (4, 4) touches one of the
+    context's obstacles (filtered by bounding balls first)."""
     centre = matrix[:3, :3] @ np.asarray(geometry.aabb_center) + matrix[:3, 3]
     radius = float(geometry.aabb_radius)
     transform = None
@@ -195,16 +201,50 @@ def _touching(
     geometry = ctx.character.geometry
     pin.updateGeometryPlacements(ctx.model, ctx.pin_data, geometry, ctx.geom_data, q)
     objects = geometry.geometryObjects
-    indices = range(len(objects)) if only is None else [int(i) for i in only]
+    indices = list(range(len(objects))) if only is None else [int(i) for i in only]
     raised = lifted_geometries(ctx.character, [(c.limb, c.normal) for c in contacts], lift)
-    hits = []
-    for i in indices:
-        placement = np.array(ctx.geom_data.oMg[i].homogeneous)
+    placements = np.array([m.homogeneous for m in ctx.geom_data.oMg.tolist()])[indices]
+    for k, i in enumerate(indices):
         if i in raised:
-            placement[:3, 3] += raised[i]
+            placements[k, :3, 3] += raised[i]
+    # shapes whose bounding balls lie outside the box of the scene (and its obstacles)
+    # touch none of it: most of a walker's shapes above level ground
+    centres, radii = _shape_balls(geometry)
+    balls = np.einsum("kab,kb->ka", placements[:, :3, :3], centres[indices])
+    beyond = ctx.base_world.beyond(balls + placements[:, :3, 3], radii[indices])
+    hits = []
+    for k, i in enumerate(indices):
+        placement = placements[k]
+        if beyond[k]:
+            if ctx.obstacle_geometry and _hits_obstacle(ctx, objects[i].geometry, placement):
+                hits.append((i, placement))
+            continue
         if _collide(ctx, objects[i].geometry, placement):
             hits.append((i, placement))
     return hits
+
+
+_BALLS: dict[int, tuple[Any, tuple[FloatArray, FloatArray]]] = {}
+
+
+def _shape_balls(geometry: Any) -> tuple[FloatArray, FloatArray]:
+    """Per shape of a pin.GeometryModel: the centre (G, 3) in its own frame and the radius
+    (G,) of a ball around it (its local box's); computed once per model (read-only)."""
+    hit = _BALLS.get(id(geometry))
+    if hit is not None and hit[0] is geometry:
+        return hit[1]
+    centres, radii = [], []
+    for obj in geometry.geometryObjects:
+        obj.geometry.computeLocalAABB()
+        centres.append(np.asarray(obj.geometry.aabb_center, dtype=np.float64))
+        radii.append(float(obj.geometry.aabb_radius))
+    out = (np.array(centres).reshape(-1, 3), np.array(radii, dtype=np.float64))
+    for array in out:
+        array.flags.writeable = False
+    if len(_BALLS) > 64:
+        _BALLS.clear()
+    _BALLS[id(geometry)] = (geometry, out)
+    return out
 
 
 def scene_collisions(

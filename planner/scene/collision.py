@@ -184,6 +184,23 @@ class _Scratch(threading.local):
         self.functors: dict[int, tuple[Any, Any]] = {}
 
 
+def _world_box(bvh: Any, obstacles: Sequence[tuple[Any, Any]]) -> tuple[FloatArray, FloatArray]:
+    """Corners (3,) low and high of a box around the mesh of ``bvh`` (its vertices' box) and
+    the bounding balls of the ``obstacles`` (coal geometry, coal.Transform3s)."""
+    low, high = np.full(3, np.inf), np.full(3, -np.inf)
+    if bvh.num_vertices:
+        bvh.computeLocalAABB()
+        low = np.array(bvh.aabb_local.min_, dtype=np.float64)
+        high = np.array(bvh.aabb_local.max_, dtype=np.float64)
+    for geometry, transform in obstacles:
+        geometry.computeLocalAABB()
+        centre = transform.transform(np.asarray(geometry.aabb_center, dtype=np.float64))
+        radius = float(geometry.aabb_radius)
+        low = np.minimum(low, centre - radius)
+        high = np.maximum(high, centre + radius)
+    return low, high
+
+
 class CollisionWorld:
     """A scene BVH plus extra convex obstacles; immutable once built, safe across threads.
 
@@ -191,7 +208,7 @@ class CollisionWorld:
     that shares the BVH. ``from_cache`` tells whether the BVH came from the disk cache.
     """
 
-    __slots__ = ("_bvh", "_identity", "_obstacles", "_scratch", "from_cache")
+    __slots__ = ("_box", "_bvh", "_identity", "_obstacles", "_scratch", "from_cache")
 
     def __init__(
         self,
@@ -205,6 +222,7 @@ class CollisionWorld:
         self._obstacles: tuple[tuple[Any, Any], ...] = tuple(obstacles)
         self._scratch = _Scratch()
         self.from_cache = from_cache
+        self._box = _world_box(bvh, self._obstacles)
 
     @property
     def bvh(self) -> Any:
@@ -244,6 +262,15 @@ class CollisionWorld:
             hit = (geometry, coal.ComputeCollision(self._bvh, geometry))
             functors[id(geometry)] = hit
         return hit[1]
+
+    def beyond(self, centres: FloatArray, radii: FloatArray) -> NDArray[np.bool_]:
+        """(n,) whether each ball (centres (n, 3) world frame, radii (n,) m) lies wholly
+        outside the box around the mesh and every obstacle: a shape inside such a ball
+        touches nothing of this world."""
+        low, high = self._box
+        c = np.asarray(centres, dtype=np.float64).reshape(-1, 3)
+        r = np.asarray(radii, dtype=np.float64).reshape(-1, 1)
+        return np.asarray(np.any((c - r > high) | (c + r < low), axis=1), dtype=np.bool_)
 
     def _collide(self, geometry: Any, matrix: FloatArray) -> bool:
         scratch = self._scratch
