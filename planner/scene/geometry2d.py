@@ -165,6 +165,8 @@ def closest_on_segments(
     Returns (distance (p,), segment index (p,), parameter t in [0, 1] along it (p,)).
     """
     pts = np.asarray(points, dtype=np.float64)
+    if pts.shape == (1, 2) and 0 < len(starts) <= _SCALAR_SEGMENTS:  # most queries
+        return _closest_on_few_segments(pts[0], starts, ends)
     d = ends - starts
     length2 = np.einsum("ij,ij->i", d, d)
     length2 = np.where(length2 > 0.0, length2, 1.0)
@@ -184,6 +186,36 @@ def closest_on_segments(
         index[begin : begin + step] = best
         param[begin : begin + step] = t[rows, best]
     return distance, index, param
+
+
+_SCALAR_SEGMENTS = 64  # up to this many segments, one 2D point's nearest in scalar arithmetic
+
+
+def _closest_on_few_segments(
+    point: FloatArray, starts: FloatArray, ends: FloatArray
+) -> tuple[FloatArray, NDArray[np.int64], FloatArray]:
+    """:func:`closest_on_segments` of one 2D point (2,) in scalar arithmetic: the same
+    operations, segment by segment, as the arrays' (a contact placement asks about one point
+    at a time, where the arrays' setup costs more than the arithmetic)."""
+    px, py = point.tolist()
+    best, best_t, best_d2 = 0, 0.0, np.inf
+    for j, ((ax, ay), (bx, by)) in enumerate(zip(starts.tolist(), ends.tolist(), strict=True)):
+        dx, dy = bx - ax, by - ay
+        length2 = dx * dx + dy * dy
+        if not length2 > 0.0:
+            length2 = 1.0
+        rx, ry = px - ax, py - ay
+        t = (rx * dx + ry * dy) / length2
+        t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
+        ex, ey = rx - t * dx, ry - t * dy
+        d2 = ex * ex + ey * ey
+        if d2 < best_d2:
+            best, best_t, best_d2 = j, t, d2
+    return (
+        np.array([np.sqrt(best_d2)]),
+        np.array([best], dtype=np.int64),
+        np.array([best_t]),
+    )
 
 
 _SMALL = 64

@@ -93,6 +93,24 @@ def test_one_points_winding_number_in_scalar_arithmetic_is_the_arrays(loops, que
         assert g2.point_winding_number(x, y, edges) == want
 
 
+@given(
+    st.lists(st.tuples(coordinate, coordinate, coordinate, coordinate), min_size=1, max_size=40),
+    st.tuples(coordinate, coordinate),
+)
+def test_one_points_nearest_segment_in_scalar_arithmetic_is_the_arrays(segments, query) -> None:
+    """closest_on_segments of one 2D point (its scalar path) answers, bit for bit, what the
+    array path answers for it among other points: distance, segment and parameter, at any
+    point, a segment's end or middle included, degenerate segments too."""
+    ends4 = np.asarray(segments, dtype=np.float64)
+    starts, ends = ends4[:, :2], ends4[:, 2:]
+    ends[0] = starts[0]  # one segment of zero length
+    for point in (np.asarray(query, dtype=np.float64), starts[-1], 0.5 * (starts[-1] + ends[-1])):
+        one = g2.closest_on_segments(point[None], starts, ends)
+        many = g2.closest_on_segments(np.vstack([point, point + 1.0]), starts, ends)
+        for got, want in zip(one, many, strict=True):
+            assert got.tolist() == want[:1].tolist()
+
+
 def _oracle_area(polygon: np.ndarray, a2: np.ndarray, b2: np.ndarray) -> float:
     """Area of (convex polygon) & {a2 x <= b2} by scipy's half-space intersection."""
     eq = ConvexHull(polygon).equations  # n.x + d <= 0
