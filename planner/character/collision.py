@@ -225,6 +225,30 @@ def bounding_segment(geom: Any) -> tuple[FloatArray, FloatArray, float]:
     return end_a, end_b, radius
 
 
+_BOUNDS: dict[int, tuple[Any, tuple[FloatArray, FloatArray]]] = {}
+_BOUNDS_KEPT = 64  # geometry models remembered (characters in a process)
+
+
+def shape_bounds(geometry: Any) -> tuple[FloatArray, FloatArray]:
+    """Per shape of a pin.GeometryModel its bounding sphere: centre (G, 3) in the shape's
+    frame and radius (G,) m, from its local AABB; computed once per geometry model
+    (read-only)."""
+    hit = _BOUNDS.get(id(geometry))
+    if hit is not None and hit[0] is geometry:
+        return hit[1]
+    shapes = [o.geometry for o in geometry.geometryObjects]
+    for shape in shapes:
+        shape.computeLocalAABB()
+    centres = np.array([s.aabb_center for s in shapes], dtype=np.float64).reshape(-1, 3)
+    radii = np.array([float(s.aabb_radius) for s in shapes], dtype=np.float64)
+    centres.flags.writeable = False
+    radii.flags.writeable = False
+    if len(_BOUNDS) >= _BOUNDS_KEPT:
+        _BOUNDS.clear()
+    _BOUNDS[id(geometry)] = (geometry, (centres, radii))
+    return centres, radii
+
+
 def _unit_clip(x: FloatArray) -> FloatArray:
     """``x`` clipped to [0, 1] (NaN stays NaN)."""
     return np.minimum(np.maximum(x, 0.0), 1.0)

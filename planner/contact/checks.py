@@ -14,6 +14,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
+from planner.character.collision import shape_bounds
 from planner.contact.body import (
     contact_placement,
     contact_points,
@@ -209,7 +210,7 @@ def _touching(
             placements[k, :3, 3] += raised[i]
     # shapes whose bounding balls lie outside the box of the scene (and its obstacles)
     # touch none of it: most of a walker's shapes above level ground
-    centres, radii = _shape_balls(geometry)
+    centres, radii = shape_bounds(geometry)
     balls = np.einsum("kab,kb->ka", placements[:, :3, :3], centres[indices])
     beyond = ctx.base_world.beyond(balls + placements[:, :3, 3], radii[indices])
     hits = []
@@ -222,29 +223,6 @@ def _touching(
         if _collide(ctx, objects[i].geometry, placement):
             hits.append((i, placement))
     return hits
-
-
-_BALLS: dict[int, tuple[Any, tuple[FloatArray, FloatArray]]] = {}
-
-
-def _shape_balls(geometry: Any) -> tuple[FloatArray, FloatArray]:
-    """Per shape of a pin.GeometryModel: the centre (G, 3) in its own frame and the radius
-    (G,) of a ball around it (its local box's); computed once per model (read-only)."""
-    hit = _BALLS.get(id(geometry))
-    if hit is not None and hit[0] is geometry:
-        return hit[1]
-    centres, radii = [], []
-    for obj in geometry.geometryObjects:
-        obj.geometry.computeLocalAABB()
-        centres.append(np.asarray(obj.geometry.aabb_center, dtype=np.float64))
-        radii.append(float(obj.geometry.aabb_radius))
-    out = (np.array(centres).reshape(-1, 3), np.array(radii, dtype=np.float64))
-    for array in out:
-        array.flags.writeable = False
-    if len(_BALLS) > 64:
-        _BALLS.clear()
-    _BALLS[id(geometry)] = (geometry, out)
-    return out
 
 
 def scene_collisions(

@@ -37,6 +37,7 @@ from planner.character.collision import (
     bounding_segment,
     few_segment_distances,
     segment_distances,
+    shape_bounds,
 )
 from planner.kinematics.model import signed_geometry_data
 from planner.motion import tuning
@@ -60,29 +61,8 @@ def shape_poses(geometry_data: Any) -> Poses:
 
 
 _MASKS: dict[int, tuple[Any, NDArray[np.bool_]]] = {}
-_BOUNDS: dict[int, tuple[Any, tuple[FloatArray, FloatArray]]] = {}
 _PAIR_LISTS: dict[int, tuple[Any, tuple[list[tuple[int, int]], list[int]]]] = {}
 _MEMO_SIZE = 64  # geometry models remembered by each memo below (characters in a process)
-
-
-def _shape_bounds(geometry: Any) -> tuple[FloatArray, FloatArray]:
-    """Per shape of a pin.GeometryModel its bounding sphere: centre (G, 3) in the shape's
-    frame and radius (G,) m, from its local AABB; computed once per geometry model
-    (read-only)."""
-    hit = _BOUNDS.get(id(geometry))
-    if hit is not None and hit[0] is geometry:
-        return hit[1]
-    shapes = [o.geometry for o in geometry.geometryObjects]
-    for shape in shapes:
-        shape.computeLocalAABB()
-    centres = np.array([s.aabb_center for s in shapes], dtype=np.float64).reshape(-1, 3)
-    radii = np.array([float(s.aabb_radius) for s in shapes], dtype=np.float64)
-    centres.flags.writeable = False
-    radii.flags.writeable = False
-    if len(_BOUNDS) >= _MEMO_SIZE:
-        _BOUNDS.clear()
-    _BOUNDS[id(geometry)] = (geometry, (centres, radii))
-    return centres, radii
 
 
 def _pair_lists(geometry: Any) -> tuple[list[tuple[int, int]], list[int]]:
@@ -208,7 +188,7 @@ class SceneDistances:
         if geometry is None:
             self.local_centres, self.radii = np.zeros((0, 3)), np.zeros(0)
         else:
-            self.local_centres, self.radii = _shape_bounds(geometry)
+            self.local_centres, self.radii = shape_bounds(geometry)
         count = len(self.radii)
         self.measured = np.full(count, -np.inf)
         self.measured_centres = np.zeros((count, 3))

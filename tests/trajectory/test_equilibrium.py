@@ -98,16 +98,23 @@ def test_polytope_consistent_with_lp(seed: int, k: int) -> None:
             assert not margin.feasible
 
 
-@settings(max_examples=25, deadline=None)
-@given(seed=st.integers(0, 2**31 - 1), k=st.integers(1, 4))
-def test_margins_at_many_samples_are_those_of_one_sample_each(seed: int, k: int) -> None:
-    """margins_at answers, sample by sample, exactly what equilibrium_margin does (feasible
-    and infeasible COMs, still and accelerating), and refuses mismatched shapes."""
+def _samples(seed: int, k: int) -> tuple[ContactPhase, np.ndarray, np.ndarray]:
+    """A random phase of k contacts and 12 COM samples around it, positions (12, 3) over
+    and beside its contacts and accelerations (12, 3), 30 % of them still."""
     rng = np.random.default_rng(seed)
     phase = random_phase(rng, k)
     pts = np.vstack([c.points for c in phase.contacts]).mean(axis=0)
     coms = np.column_stack([pts[:2] + rng.uniform(-0.6, 0.6, (12, 2)), rng.uniform(0.5, 1.2, 12)])
     accs = rng.uniform(-4.0, 4.0, (12, 3)) * (rng.random((12, 1)) < 0.7)
+    return phase, coms, accs
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), k=st.integers(1, 4))
+def test_margins_at_many_samples_are_those_of_one_sample_each(seed: int, k: int) -> None:
+    """margins_at answers, sample by sample, exactly what equilibrium_margin does (feasible
+    and infeasible COMs, still and accelerating), and refuses mismatched shapes."""
+    phase, coms, accs = _samples(seed, k)
     feasible, margins = equilibrium.margins_at(phase, coms, accs)
     for c, a, ok, m in zip(coms, accs, feasible, margins, strict=True):
         one = trajectory.equilibrium_margin(phase, c, a)
@@ -283,11 +290,7 @@ def test_support_point_lp_agrees_with_highs(seed: int, k: int) -> None:
 def test_holds_at_is_the_margin_within_the_tolerance(seed: int, k: int) -> None:
     """Where weights give the wrench (a finite margin), a sample holds Eq. 1 exactly when its
     margin is at least -EQ1_TOLERANCE times the mass; with no tolerance, when it is feasible."""
-    rng = np.random.default_rng(seed)
-    phase = random_phase(rng, k)
-    pts = np.vstack([c.points for c in phase.contacts]).mean(axis=0)
-    coms = np.column_stack([pts[:2] + rng.uniform(-0.6, 0.6, (12, 2)), rng.uniform(0.5, 1.2, 12)])
-    accs = rng.uniform(-4.0, 4.0, (12, 3)) * (rng.random((12, 1)) < 0.7)
+    phase, coms, accs = _samples(seed, k)
     feasible, margins = equilibrium.margins_at(phase, coms, accs)
     holds, same = trajectory.holds_at(phase, coms, accs)
     np.testing.assert_array_equal(same, margins)
