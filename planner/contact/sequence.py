@@ -139,8 +139,7 @@ class SequenceParams:
     how often the walk may reach the same contacts (every limb's within
     ``LOOP_CONTACT_TOLERANCE``) without getting further before giving up: a walk that went round
     a loop of steps twice stepped round it until its idle rounds ran out (the climbing
-    wall's first walk, every seed: 2.9 s of its 3.6), and one that came back once went round
-    again (the climbing humanoid's first walk: 5 of its 25 cycles). jitter : m,
+    wall's first walk, every seed: 2.9 s of its 3.6). jitter : m,
     scale of the random term added to the scores of contact candidates (``create_contact``'s
     ``randomness``); retries raise it. release_guard : no advance or step leaves a leg behind
     the body unable to be released when it could be before (the planner's retries after a
@@ -155,7 +154,7 @@ class SequenceParams:
     max_states: int = 200
     max_stuck: int = 3
     idle_rounds: int = 6
-    loop_visits: int = 2
+    loop_visits: int = 3
     jitter: float = 0.05
     release_guard: bool = False
 
