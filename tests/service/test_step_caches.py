@@ -13,6 +13,7 @@ from typing import Any
 
 import pytest
 
+from planner.character import collision as character_collision
 from planner.character import get_character
 from planner.contact import context, reachability, standing
 from planner.kinematics import borrowed_data, borrowed_geometry_data
@@ -57,7 +58,7 @@ def _cold(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(tracker, "_TERMS", {})
     monkeypatch.setattr(clearance, "_PAIR_SHAPES", {})
     monkeypatch.setattr(clearance, "_PAIR_LISTS", {})
-    monkeypatch.setattr(clearance, "_BOUNDS", {})
+    monkeypatch.setattr(character_collision, "_BOUNDS", {})
 
 
 @pytest.mark.usefixtures("in_process_worker")
