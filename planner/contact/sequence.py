@@ -17,7 +17,7 @@ The root path is a guide, not a constraint. The walker repeats a gait cycle:
    afterwards (the rear foot of a biped left unable to follow). The release is only emitted
    with the new contact, so a failed step leaves the sequence unchanged and another limb is
    tried. A stuck walker looks further ahead for footholds (stepping stones), then
-   repositions a limb.
+   repositions a limb; it stays stuck, looking as far, until its body moves on.
 
 With ``release_guard`` (the planner's retries once a walk stalled unable to release a leg it
 left behind, ``stats["stranded"]``), neither an advance nor a step may leave a leg behind the
@@ -132,8 +132,11 @@ class SequenceParams:
     :func:`gait_lengths`). advance : m the body is moved toward per gait cycle (None:
     terrain-aware, like the lookahead). min_step : m, a limb closer than this
     to its foothold does not step. goal_tolerance : m, a contact this close to the goal's
-    counts as reached. max_states : cap on emitted states. max_stuck : gait cycles in a row
-    with neither body progress nor a step before giving up. idle_rounds : gait rounds (a
+    counts as reached. max_states : cap on emitted states. max_stuck : gait cycles with
+    neither body progress nor a step, since the body last moved on, before giving up (a step
+    made while stuck does not start the count again, :func:`stuck_count`: on the climbing
+    wall the longer look-ahead kept after it found the holds its first walk missed, and
+    rubble's first walk stops three cycles sooner where it stalls). idle_rounds : gait rounds (a
     cycle per walking limb) without the body getting further along the guide before giving
     up (steps that lead nowhere; the planner then retries along a new guide). loop_visits :
     how often the walk may reach the same contacts (every limb's within
@@ -374,6 +377,15 @@ def _advance_body(
     )
     moved = ContactState(np.array(result.q), state.contacts)
     return moved if check_state(ctx, moved).valid else None
+
+
+def stuck_count(stuck: int, *, moved: bool, stepped: bool) -> int:
+    """A walk's stuck count after a gait cycle: 0 once its body moved on along the guide,
+    unchanged after a step alone (a stuck walker stays stuck, its look-ahead as long, until
+    its body gets on), one more after a cycle with neither."""
+    if moved:
+        return 0
+    return stuck if stepped else stuck + 1
 
 
 def resume_index(states: Sequence[ContactState], poses: FloatArray, back_m: float) -> int:
@@ -717,10 +729,9 @@ def contact_sequence(
                     f"no progress at {s:.2f} m of {guide.length:.2f} m: the walk came back to "
                     f"the same contacts {p.loop_visits} times"
                 )
-        if stepped or moved:
-            stuck = 0
+        stuck = stuck_count(stuck, moved=moved, stepped=stepped)
+        if moved or stepped:
             continue
-        stuck += 1
         if stuck > p.max_stuck:
             # stuck short of the guide's end: no foothold up to the furthest lookahead could
             # be stepped to from here (``stats["blocked"]``)

@@ -102,12 +102,15 @@ def _plan_recording_walks(
 
 
 def test_a_stalled_walk_is_walked_on_from_before_where_it_stalled() -> None:
-    """Climbing the cube wall, the first walk comes back to the same contacts among the
-    cubes (it is not stuck for want of a foothold): the next walk goes on along the same
-    guide from before where it stalled, its states up to there kept."""
-    # the climbing wall scenario's plan (tests/scenarios/plans/climbing_wall_humanoid.json)
+    """Climbing the cube wall with one idle gait round allowed, the first walk stalls among
+    the cubes, at 1.39 m, without getting further (it is not stuck for want of a foothold):
+    the next walk goes on along the same guide from before where it stalled, its states up
+    to there kept."""
+    # the climbing wall scenario's plan (tests/scenarios/plans/climbing_wall_humanoid.json),
+    # whose walks, with the default idle rounds, now get past the cubes the first time
     options = PlanOptions(
-        limbs=("left_hand", "right_hand"), sequence=SequenceParams(max_states=400)
+        limbs=("left_hand", "right_hand"),
+        sequence=SequenceParams(max_states=400, idle_rounds=1),
     )
     result, walks = _plan_recording_walks(
         "climbing_wall", np.array([0.5, 0.0, 0.0]), np.array([3.3, 0.0, 1.4]), 60.0, options

@@ -20,6 +20,7 @@ from planner.contact.sequence import (
     _same_contacts,
     gait_lengths,
     gait_order,
+    stuck_count,
 )
 from planner.contact.state import ContactState, LimbContact
 
@@ -135,3 +136,13 @@ def test_same_contacts_are_the_same_limbs_each_within_the_tolerance(
     assert not _same_contacts(first, _state(shifted))
     assert not _same_contacts(first, _state({"a": a["a"]}))
     assert not _same_contacts(first, _state({"a": a["a"], "c": a["b"]}))
+
+
+def test_a_walk_stays_stuck_until_its_body_moves_on() -> None:
+    """The stuck count: back to 0 once the body moved on (with or without a step), unchanged
+    after a step alone, one more after a cycle with neither."""
+    assert stuck_count(2, moved=True, stepped=False) == 0
+    assert stuck_count(2, moved=True, stepped=True) == 0
+    assert stuck_count(2, moved=False, stepped=True) == 2
+    assert stuck_count(0, moved=False, stepped=True) == 0
+    assert stuck_count(2, moved=False, stepped=False) == 3
