@@ -184,14 +184,20 @@ class _Scratch(threading.local):
         self.functors: dict[int, tuple[Any, Any]] = {}
 
 
-def _world_box(bvh: Any, obstacles: Sequence[tuple[Any, Any]]) -> tuple[FloatArray, FloatArray]:
-    """Corners (3,) low and high of a box around the mesh of ``bvh`` (its vertices' box) and
-    the bounding balls of the ``obstacles`` (coal geometry, coal.Transform3s)."""
-    low, high = np.full(3, np.inf), np.full(3, -np.inf)
-    if bvh.num_vertices:
-        bvh.computeLocalAABB()
-        low = np.array(bvh.aabb_local.min_, dtype=np.float64)
-        high = np.array(bvh.aabb_local.max_, dtype=np.float64)
+def _mesh_box(bvh: Any) -> tuple[FloatArray, FloatArray]:
+    """Corners (3,) low and high of the box of ``bvh``'s vertices (read, not modified)."""
+    vertices = np.asarray(bvh.vertices(), dtype=np.float64).reshape(-1, 3)
+    if len(vertices) == 0:
+        return np.full(3, np.inf), np.full(3, -np.inf)
+    return vertices.min(axis=0), vertices.max(axis=0)
+
+
+def _world_box(
+    mesh: tuple[FloatArray, FloatArray], obstacles: Sequence[tuple[Any, Any]]
+) -> tuple[FloatArray, FloatArray]:
+    """Corners (3,) low and high of a box around the ``mesh`` box and the bounding balls of
+    the ``obstacles`` (coal geometry, coal.Transform3s)."""
+    low, high = mesh
     for geometry, transform in obstacles:
         geometry.computeLocalAABB()
         centre = transform.transform(np.asarray(geometry.aabb_center, dtype=np.float64))
@@ -205,10 +211,11 @@ class CollisionWorld:
     """A scene BVH plus extra convex obstacles; immutable once built, safe across threads.
 
     Build it with ``Scene`` (or ``CollisionWorld(bvh)``); ``with_obstacles`` returns a new world
-    that shares the BVH. ``from_cache`` tells whether the BVH came from the disk cache.
+    that shares the BVH (and ``mesh_box``, the box of its vertices, computed once). ``from_cache``
+    tells whether the BVH came from the disk cache.
     """
 
-    __slots__ = ("_box", "_bvh", "_identity", "_obstacles", "_scratch", "from_cache")
+    __slots__ = ("_box", "_bvh", "_identity", "_mesh_box", "_obstacles", "_scratch", "from_cache")
 
     def __init__(
         self,
@@ -216,13 +223,15 @@ class CollisionWorld:
         obstacles: Sequence[tuple[Any, Any]] = (),
         *,
         from_cache: bool = False,
+        mesh_box: tuple[FloatArray, FloatArray] | None = None,
     ) -> None:
         self._bvh = bvh
         self._identity = coal.Transform3s()
         self._obstacles: tuple[tuple[Any, Any], ...] = tuple(obstacles)
         self._scratch = _Scratch()
         self.from_cache = from_cache
-        self._box = _world_box(bvh, self._obstacles)
+        self._mesh_box = _mesh_box(bvh) if mesh_box is None else mesh_box
+        self._box = _world_box(self._mesh_box, self._obstacles)
 
     @property
     def bvh(self) -> Any:
@@ -243,7 +252,12 @@ class CollisionWorld:
             (coal_geometry(shape), to_transform(shape_world_matrix(shape, pose)))
             for shape, pose in obstacles
         ]
-        return CollisionWorld(self._bvh, (*self._obstacles, *extra), from_cache=self.from_cache)
+        return CollisionWorld(
+            self._bvh,
+            (*self._obstacles, *extra),
+            from_cache=self.from_cache,
+            mesh_box=self._mesh_box,
+        )
 
     add_obstacles = with_obstacles
 
