@@ -88,15 +88,29 @@ class Scene:
         return _heights_below(self, points)
 
 
+_HEIGHTS_BLOCK = 1 << 20  # (points x faces) entries per block of heights_below
+
+
 def _heights_below(scene: Scene, points: FloatArray) -> FloatArray:
     """:meth:`Scene.height_below` of each of (n, 3) points at once, nan where nothing is
-    below: the faces whose boxes the points' span meets are picked once, and each point is
-    then tested against those (the same arithmetic, point by point, as one call each)."""
+    below: the faces whose boxes the points' span meets are picked once (per block of
+    points, bounding memory), and each point is then tested against those (the same
+    arithmetic, point by point, as one call each)."""
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     out = np.full(len(pts), np.nan)
-    if len(pts) == 0:
-        return out
     lo, hi, tri = _vertical_ray_data(scene)
+    step = max(1, _HEIGHTS_BLOCK // max(1, len(tri)))
+    for begin in range(0, len(pts), step):
+        out[begin : begin + step] = _block_heights_below(lo, hi, tri, pts[begin : begin + step])
+    return out
+
+
+def _block_heights_below(
+    lo: FloatArray, hi: FloatArray, tri: FloatArray, pts: FloatArray
+) -> FloatArray:
+    """:func:`_heights_below` of the points ``pts`` (n, 3), given the faces' boxes (low and
+    high corners (m, 3)) and triangles (m, 3, 3)."""
+    out = np.full(len(pts), np.nan)
     span = (
         (lo[:, 0] <= pts[:, 0].max())
         & (pts[:, 0].min() <= hi[:, 0])

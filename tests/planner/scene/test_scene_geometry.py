@@ -14,6 +14,7 @@ from planner.poses import pose_matrix, yaw_matrix
 from planner.scene import ContactRegion, SurfaceKind, build_scene, contact_region
 from planner.scene import builtin as b
 from planner.scene import geometry2d as g2
+from planner.scene import scene as scene_module
 from planner.shapes import Box, ConvexPolytope
 
 coordinate = st.floats(-5.0, 5.0, allow_nan=False, allow_infinity=False)
@@ -284,7 +285,8 @@ def test_heights_below_at_once_are_those_of_each_point(
     builtin_scenes, name: str, seed: int
 ) -> None:
     """heights_below answers for many points exactly what height_below does point by point
-    (nan where it says None): over the scene, beside it, under it and above it."""
+    (nan where it says None): over the scene, beside it, under it and above it, whether the
+    points go in one block or in blocks of three."""
     scene = builtin_scenes[name]
     rng = np.random.default_rng(seed)
     low, high = scene.vertices.min(axis=0), scene.vertices.max(axis=0)
@@ -293,4 +295,7 @@ def test_heights_below_at_once_are_those_of_each_point(
     for point, got in zip(points, at_once, strict=True):
         one = scene.height_below(point)
         assert (one is None and np.isnan(got)) or one == got
+    with pytest.MonkeyPatch.context() as patch:  # in blocks of a point or a few
+        patch.setattr(scene_module, "_HEIGHTS_BLOCK", 3 * len(scene.faces))
+        np.testing.assert_array_equal(scene.heights_below(points), at_once)
     assert scene.heights_below(np.zeros((0, 3))).shape == (0,)
