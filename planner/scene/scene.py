@@ -111,14 +111,35 @@ def _block_heights_below(
     """:func:`_heights_below` of the points ``pts`` (n, 3), given the faces' boxes (low and
     high corners (m, 3)) and triangles (m, 3, 3)."""
     out = np.full(len(pts), np.nan)
+    hit, heights = _crossings(lo, hi, tri, pts)
+    hit &= heights <= pts[:, 2:3] + 1e-9
+    found = hit.any(axis=1)
+    if found.any():
+        out[found] = np.where(hit, heights, -np.inf)[found].max(axis=1)
+    return out
+
+
+def _vertical_crossings(scene: Scene, point: FloatArray) -> FloatArray:
+    """Heights (k,) where the vertical line through ``point`` (3,) crosses a face of
+    ``scene`` (vertical faces are grazed, not crossed)."""
+    pts = np.asarray(point, dtype=np.float64).reshape(1, 3)
+    hit, heights = _crossings(*_vertical_ray_data(scene), pts)
+    return np.asarray(heights[0][hit[0]], dtype=np.float64)
+
+
+def _crossings(
+    lo: FloatArray, hi: FloatArray, tri: FloatArray, pts: FloatArray
+) -> tuple[NDArray[np.bool_], FloatArray]:
+    """Whether the vertical line through each of the points ``pts`` (n, 3) crosses each face
+    (n, k) whose box the points' span meets (of the faces' boxes, low and high corners
+    (m, 3), and triangles (m, 3, 3); vertical faces are grazed, not crossed), and at which
+    height (n, k) m."""
     span = (
         (lo[:, 0] <= pts[:, 0].max())
         & (pts[:, 0].min() <= hi[:, 0])
         & (lo[:, 1] <= pts[:, 1].max())
         & (pts[:, 1].min() <= hi[:, 1])
     )
-    if not np.any(span):
-        return out
     lo, hi, t = lo[span], hi[span], tri[span]
     px, py = pts[:, 0:1], pts[:, 1:2]  # (n, 1) against (k,) faces
     near = (lo[:, 0] <= px) & (px <= hi[:, 0]) & (lo[:, 1] <= py) & (py <= hi[:, 1])
@@ -133,33 +154,7 @@ def _block_heights_below(
     wa = 1.0 - wb - wc
     hit = near & flat & (wa >= -1e-12) & (wb >= -1e-12) & (wc >= -1e-12)
     heights = wa * a[:, 2] + wb * b[:, 2] + wc * c[:, 2]
-    hit &= heights <= pts[:, 2:3] + 1e-9
-    found = hit.any(axis=1)
-    out[found] = np.where(hit, heights, -np.inf)[found].max(axis=1)
-    return out
-
-
-def _vertical_crossings(scene: Scene, point: FloatArray) -> FloatArray:
-    """Heights (k,) where the vertical line through ``point`` (3,) crosses a face of
-    ``scene`` (vertical faces are grazed, not crossed)."""
-    px, py = (float(c) for c in np.asarray(point, dtype=np.float64).reshape(3)[:2])
-    lo, hi, tri = _vertical_ray_data(scene)
-    near = (lo[:, 0] <= px) & (px <= hi[:, 0]) & (lo[:, 1] <= py) & (py <= hi[:, 1])
-    if not np.any(near):
-        return np.zeros(0)
-    t = tri[near]  # (k, 3, 3)
-    a, b, c = t[:, 0], t[:, 1], t[:, 2]
-    v0, v1 = b[:, :2] - a[:, :2], c[:, :2] - a[:, :2]
-    v2 = np.array([px, py]) - a[:, :2]
-    den = v0[:, 0] * v1[:, 1] - v1[:, 0] * v0[:, 1]
-    flat = np.abs(den) > 1e-12
-    den = np.where(flat, den, 1.0)
-    wb = (v2[:, 0] * v1[:, 1] - v1[:, 0] * v2[:, 1]) / den
-    wc = (v0[:, 0] * v2[:, 1] - v2[:, 0] * v0[:, 1]) / den
-    wa = 1.0 - wb - wc
-    hit = flat & (wa >= -1e-12) & (wb >= -1e-12) & (wc >= -1e-12)
-    heights = wa * a[:, 2] + wb * b[:, 2] + wc * c[:, 2]
-    return np.asarray(heights[hit], dtype=np.float64)
+    return hit, heights
 
 
 _RAY_DATA: dict[int, tuple[Scene, FloatArray, FloatArray, FloatArray]] = {}
