@@ -42,6 +42,8 @@ def _line(n: int, step: float) -> np.ndarray:
         ("jitter", 2.0),
         ("idle_rounds", 0),
         ("loop_visits", 1),
+        ("backtracks", -1),
+        ("backtracks", 21),
     ],
 )
 def test_params_out_of_range_are_refused(field: str, value: float) -> None:
