@@ -8,11 +8,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.character import Character, get_character
+from planner.contact.context import ContactContext, make_context
 from planner.contact.planner import ContactPlan, Endpoint, plan_contact_motion
 from planner.contact.reachability import ReachabilityChecker
 from planner.offline import OfflineData, load_offline_data
 from planner.poses import pose_matrix, yaw_matrix
-from planner.result import PlanResult
+from planner.result import PlanResult, PlanStatus
 from planner.scene import Scene, load_builtin_scene
 from planner.shapes import Box, Shape
 from tests.paths import gecko_cache_dir
@@ -85,6 +86,15 @@ def flat_walk(character_id: str) -> PlanResult[ContactPlan]:
         rng=np.random.default_rng(4),
         time_budget_s=10.0,
     )
+
+
+def solved_flat_walk(character_id: str) -> tuple[ContactPlan, ContactContext]:
+    """:func:`flat_walk`'s plan, asserted SOLVED, and a contact context of the character in
+    the flat scene."""
+    character, data = character_and_data(character_id)
+    plan = flat_walk(character_id)
+    assert plan.status is PlanStatus.SOLVED and plan.value is not None, plan.message
+    return plan.value, make_context(scene("flat"), character, data)
 
 
 def plan_into_the_pen(seed: int, time_budget_s: float = 1.0) -> PlanResult[ContactPlan]:

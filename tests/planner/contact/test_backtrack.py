@@ -11,12 +11,11 @@ import itertools
 import numpy as np
 import pytest
 
-from planner.contact.context import make_context
 from planner.contact.generation import break_contact
 from planner.contact.planner import Endpoint, plan_contact_motion
 from planner.contact.sequence import release_point
 from planner.result import PlanStatus
-from tests.planner.contact.contact_helpers import character_and_data, flat_walk, scene
+from tests.planner.contact.contact_helpers import character_and_data, scene, solved_flat_walk
 
 # m: starts of the hexapod's 1 m flat walk near the origin; from about half of the starts
 # within a few millimetres of it (the first two here), the walk strands its right rear leg
@@ -25,11 +24,8 @@ HEXAPOD_STARTS = ((-0.001, 0.0), (0.0, 0.001), (0.0, 0.0), (0.001, 0.0))
 
 
 def test_the_release_point_is_the_latest_state_with_every_leg_down_that_releases_the_leg() -> None:
-    character, data = character_and_data("quadruped")
-    plan = flat_walk("quadruped")
-    assert plan.status is PlanStatus.SOLVED and plan.value is not None, plan.message
-    states = plan.value.states
-    ctx = make_context(scene("flat"), character, data)
+    plan, ctx = solved_flat_walk("quadruped")
+    states = plan.states
     full = len(states[0].contacts)
 
     def releases(k: int, leg: str) -> bool:

@@ -7,23 +7,19 @@ import itertools
 
 import numpy as np
 
-from planner.contact.context import make_context
 from planner.contact.generation import break_contact
 from planner.contact.sequence import SequenceParams, contact_sequence
 from planner.result import PlanStatus
-from tests.planner.contact.contact_helpers import character_and_data, flat_walk, scene
+from tests.planner.contact.contact_helpers import solved_flat_walk
 
 
 def test_a_guarded_walk_never_strands_a_leg_behind_the_body() -> None:
-    character, data = character_and_data("quadruped")
-    plan = flat_walk("quadruped")
-    assert plan.status is PlanStatus.SOLVED and plan.value is not None, plan.message
-    states = plan.value.states
-    ctx = make_context(scene("flat"), character, data)
+    plan, ctx = solved_flat_walk("quadruped")
+    states = plan.states
     guarded = contact_sequence(
         ctx,
         states[0],
-        plan.value.root_path,
+        plan.root_path,
         states[-1],
         rng=np.random.default_rng(4),
         until=lambda: False,
