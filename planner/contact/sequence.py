@@ -344,6 +344,15 @@ class _Guide:
         gaps = (self.poses[start:, :3, 3] - position) * _PROGRESS_WEIGHTS
         return float(self.lengths[start + int(np.argmin(np.linalg.norm(gaps, axis=1)))])
 
+    def walked(self, states: Sequence[ContactState]) -> list[float]:
+        """Arc length (m) of each of a walk's ``states`` along the guide, each searched from
+        the one before's (:meth:`progress`)."""
+        progress, s = [], 0.0
+        for state in states:
+            s = self.progress(np.asarray(state.q[:3]), s)
+            progress.append(s)
+        return progress
+
     def tangent(self, s: float) -> FloatArray:
         """Unit direction (3,) of the guide at arc length ``s`` (over the next 0.1 m)."""
         ahead = self.at(s + 0.1)[:3, 3] - self.at(s)[:3, 3]
@@ -431,11 +440,7 @@ def resume_index(states: Sequence[ContactState], poses: FloatArray, back_m: floa
     """Index into ``states`` (a walk along the guide ``poses`` (n, 4, 4)) of the state a retry
     resumes from: the last one at least ``back_m`` m of guide behind the walk's furthest
     progress that holds as many contacts as the first state (every leg down); 0 if none."""
-    guide = _Guide.of(np.asarray(poses, dtype=np.float64))
-    progress, s = [], 0.0
-    for state in states:
-        s = guide.progress(np.asarray(state.q[:3]), s)
-        progress.append(s)
+    progress = _Guide.of(np.asarray(poses, dtype=np.float64)).walked(states)
     limit = max(progress) - back_m
     full = len(states[0].contacts)
     for k in range(len(states) - 1, 0, -1):
@@ -790,9 +795,7 @@ def contact_sequence(
                 stats["backtracks"] = backtracks
                 del states[k + 1 :]
                 current, guarded, turn = states[k], leg, order.index(leg)
-                s = 0.0
-                for state in states:  # the progress as :func:`resume_index` measures it
-                    s = guide.progress(np.asarray(state.q[:3]), s)
+                s = guide.walked(states)[-1]
                 stranded_for = idle = stuck = 0
                 visited.clear()
                 held_back.clear()
