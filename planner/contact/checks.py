@@ -204,7 +204,8 @@ def _touching(
     objects = geometry.geometryObjects
     indices = list(range(len(objects))) if only is None else [int(i) for i in only]
     raised = lifted_geometries(ctx.character, [(c.limb, c.normal) for c in contacts], lift)
-    placements = np.array([m.homogeneous for m in ctx.geom_data.oMg.tolist()])[indices]
+    placed = ctx.geom_data.oMg.tolist()  # one conversion of the list, then only ``indices``
+    placements = np.array([placed[i].homogeneous for i in indices])
     for k, i in enumerate(indices):
         if i in raised:
             placements[k, :3, 3] += raised[i]

@@ -698,6 +698,7 @@ def contact_sequence(
         stats["open_cycles"] = int(stats.get("open_cycles", 0)) + int(opened)
         # 1. advance the body along the guide
         moved = False
+        held_back.clear()  # the legs behind the body this cycle finds it cannot release
         if s < guide.length - 1e-9:
             slack = kinematic_slack(ctx, current)
             for fraction, rise, over_body in _ADVANCE_TRIES:
@@ -798,9 +799,7 @@ def contact_sequence(
                 s = guide.walked(states)[-1]
                 stranded_for = idle = stuck = 0
                 visited.clear()
-                held_back.clear()
                 continue
-        held_back.clear()
         stuck = stuck_count(stuck, moved=moved, stepped=stepped)
         if moved or stepped:
             continue
