@@ -478,7 +478,9 @@ def _window_curve(
     # most extra points first: the curve that lingers most is nearly always the shortest
     # (7 or 8 extra points in all 114 windows of six plans: walks, stairs, rubble), and a
     # candidate is dropped as soon as it would end after the best so far; of equals, the
-    # one with the fewest extra points is kept
+    # one with the fewest extra points is kept. Fewer points are tried only while they do
+    # no worse: the first that ends later (or finds no curve) after one was found ends the
+    # search
     for extra in range(MAX_EXTRA_ATTRACTORS, -1, -1):
         fractions = np.arange(1, extra + 1) / (extra + 1)
         middle = att[0] + fractions[:, None] * (after - att[0])
@@ -489,6 +491,8 @@ def _window_curve(
         )
         if found is not None and (best is None or found[0].t1 <= best[0].t1):
             best = found
+        elif best is not None:
+            break
     return best
 
 
