@@ -555,8 +555,10 @@ def contact_sequence(
         # surface off the ground's height lies within the legs' reach of it, and every leg
         # finds a foothold right under its nominal position there, at the height of the
         # contacts held now (no step, rock, gap or obstacle pushing a foot aside)
-        if gait.open_lookahead < OPEN_GROUND_GAIN * gait.rough_lookahead:
-            return False
+        return gait.open_lookahead >= OPEN_GROUND_GAIN * gait.rough_lookahead and level_ground()
+
+    def level_ground() -> bool:
+        # open_ground's ground, whatever the walker's strides
         heights = [float(c.position[2]) for c in current.contacts if c.limb in legs]
         if len(heights) != len(legs) or max(heights) - min(heights) > OPEN_GROUND_RISE:
             return False
@@ -701,7 +703,12 @@ def contact_sequence(
         held_back.clear()  # the legs behind the body this cycle finds it cannot release
         if s < guide.length - 1e-9:
             slack = kinematic_slack(ctx, current)
+            level: bool | None = None  # whether the ground is level here, asked once
             for fraction, rise, over_body in _ADVANCE_TRIES:
+                if rise > 0.0:
+                    level = level_ground() if level is None else level
+                    if level:
+                        break  # a taller body clears a rock; there is none in reach
                 target_s = min(s + fraction * advance, guide.length)
                 target = guide.at(target_s)
                 if over_body:
