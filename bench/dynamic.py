@@ -7,13 +7,13 @@ Plans each scenario once at its seed, recording the arguments of every ``dynamic
 call again, median of ``--repeat`` runs, two ways in the same run:
 
 - old: every inequality row in the QP from the start, Clarabel at its default tolerances
-  (1e-8) with iterative refinement, 12 collocation times in every phase (what
+  (1e-8) with iterative refinement and rescaling, 12 collocation times in every phase (what
   ``dynamic_com`` did before ``lazy_rows`` and ``sample_spacing``);
 - whole: as the plan calls it but every round a round of the whole QP
   (``local_repair=False``: what ``dynamic_com`` did before the repair windows);
 - new: as the plan calls it (rows on the curve alone added when needed, tolerances
-  ``SOLVER_TOLERANCE``, refinement ``SOLVER_REFINEMENT``, the plan's sample spacing, a few
-  failing phases solved again in windows).
+  ``SOLVER_TOLERANCE``, refinement ``SOLVER_REFINEMENT``, rescaling ``SOLVER_EQUILIBRATION``,
+  the plan's sample spacing, a few failing phases solved again in windows).
 
 Prints per call the QP size, the three medians, the speed-ups of new over old and over whole,
 and the largest difference between the control points of the old and new curves (m), then
@@ -97,14 +97,18 @@ def record_calls(name: str) -> list[Call]:
 
 @contextmanager
 def old_way() -> Iterator[None]:
-    """``dynamic_com`` as before lazy rows: Clarabel's default tolerances and refinement
-    (the caller also passes ``lazy_rows=False``)."""
-    saved = dynamic.SOLVER_TOLERANCE, dynamic.SOLVER_REFINEMENT
-    dynamic.SOLVER_TOLERANCE, dynamic.SOLVER_REFINEMENT = 1e-8, True
+    """``dynamic_com`` as before lazy rows: Clarabel's default tolerances, refinement and
+    rescaling (the caller also passes ``lazy_rows=False``)."""
+    saved = dynamic.SOLVER_TOLERANCE, dynamic.SOLVER_REFINEMENT, dynamic.SOLVER_EQUILIBRATION
+    dynamic.SOLVER_TOLERANCE, dynamic.SOLVER_REFINEMENT, dynamic.SOLVER_EQUILIBRATION = (
+        1e-8,
+        True,
+        True,
+    )
     try:
         yield
     finally:
-        dynamic.SOLVER_TOLERANCE, dynamic.SOLVER_REFINEMENT = saved
+        dynamic.SOLVER_TOLERANCE, dynamic.SOLVER_REFINEMENT, dynamic.SOLVER_EQUILIBRATION = saved
 
 
 def timed(fn: Callable[[], trajectory.DynamicCom | None], repeat: int) -> tuple[float, Any]:
