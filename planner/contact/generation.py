@@ -52,7 +52,7 @@ from planner.kinematics import (
     project_contact,
     solve_ik,
 )
-from planner.kinematics.model import has_free_flyer_root
+from planner.kinematics.model import has_free_flyer_root, joint_id, limb_reach
 from planner.motion.spec import torso_columns
 from planner.scene import Surface
 from planner.scene.geometry2d import plane_basis
@@ -578,11 +578,14 @@ def _projections(
     ctx: ContactContext, state: ContactState, limb: str, cand: _Candidate
 ) -> Iterator[FloatArray]:
     """Configurations putting ``limb`` on the candidate: root fixed from each database seed
-    (re-sampling the limb posture, 2PAC 7.2), then the whole body with the contacts held."""
+    (re-sampling the limb posture, 2PAC 7.2), then the whole body with the contacts held.
+    The seeds are not tried when the candidate lies beyond the limb's reach from where the
+    body holds its root joint (:func:`_beyond_reach`: those IKs can only fail)."""
     spec = ctx.character.limb(limb)
     db = ctx.data.limb(limb).database
     normal = ctx.scene.surfaces[cand.surface].normal
-    for idx in cand.seeds[: ctx.params.max_seeds]:
+    seeds = () if _beyond_reach(ctx, state, limb, cand.point, normal) else cand.seeds
+    for idx in seeds[: ctx.params.max_seeds]:
         q0 = np.array(state.q)
         q0[spec.idx_q] = db.q[idx]
         if spec.contact == "point":
@@ -655,6 +658,34 @@ def _projections(
             if again.residuals[index, 0] <= 1e-3 and _holds(ctx, again.q, state.contacts):
                 yield np.array(again.q)
                 return
+
+
+def _beyond_reach(
+    ctx: ContactContext, state: ContactState, limb: str, point: FloatArray, normal: FloatArray
+) -> bool:
+    """Whether the limb's contact, put on ``point`` (3,) of a surface facing ``normal`` (3,)
+    as :func:`_projections` aims it (lifted by the clearance), lies further from the origin
+    of the limb's root joint at ``state`` than the limb reaches (:func:`limb_reach`) plus
+    ``REACH_SLACK``: no posture of the limb alone puts it there."""
+    spec = ctx.character.limb(limb)
+    if spec.contact == "point":  # the frame's origin, lifted by the offset's length too
+        lift = ctx.params.clearance + float(np.linalg.norm(spec.offset))
+        offset: tuple[float, ...] = (0.0, 0.0, 0.0)
+    else:
+        lift, offset = ctx.params.clearance, tuple(np.asarray(spec.offset).tolist())
+    reach: float = ctx.cached(
+        ("reach", limb, offset),
+        lambda: limb_reach(ctx.model, spec.root_joint, spec.frame_id, np.asarray(offset)),
+    )
+    pin.forwardKinematics(ctx.model, ctx.pin_data, state.q)
+    hip = ctx.pin_data.oMi[joint_id(ctx.model, spec.root_joint)].translation
+    goal = point + lift * normal
+    return float(np.linalg.norm(goal - hip)) > reach + REACH_SLACK
+
+
+REACH_SLACK = 1e-3
+"""m: a candidate counts as beyond a limb's reach only this far beyond it (the projection's
+tolerance is 1e-4 m)."""
 
 
 def _balanced_after_create(

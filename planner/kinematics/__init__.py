@@ -29,6 +29,7 @@ from planner.kinematics.model import (
     joint_dofs,
     joint_id,
     limb_dofs,
+    limb_reach,
     scratch_data,
     within_limits,
 )
@@ -76,6 +77,7 @@ __all__ = [
     "joint_id",
     "keyframe_times",
     "limb_dofs",
+    "limb_reach",
     "minimum_jerk",
     "project_contact",
     "resolve_active",

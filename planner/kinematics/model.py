@@ -88,6 +88,30 @@ def limb_dofs(model: pin.Model, root_joint: int | str, effector_frame: int | str
     return dofs
 
 
+def limb_reach(
+    model: pin.Model, root_joint: int | str, effector_frame: int | str, offset: FloatArray
+) -> float:
+    """m, the farthest the point ``offset`` (3,) of ``effector_frame`` (its frame) can be from
+    the origin of ``root_joint`` whatever the chain's joints do: the sum of the distances
+    between consecutive joint origins down the chain, and from the last one to that point
+    (an upper bound: joint limits and the chain's angles only shorten it).
+
+    Raises ValueError if ``root_joint`` is not an ancestor of the effector frame.
+    """
+    root = joint_id(model, root_joint)
+    fid = frame_id(model, effector_frame)
+    frame = model.frames[fid]
+    joint = int(frame.parentJoint)
+    point = frame.placement.act(np.asarray(offset, dtype=np.float64))
+    total = float(np.linalg.norm(point))
+    while joint != root:
+        if joint == 0:
+            raise ValueError(f"joint {model.names[root]!r} does not move frame {frame.name!r}")
+        total += float(np.linalg.norm(model.jointPlacements[joint].translation))
+        joint = int(model.parents[joint])
+    return total
+
+
 def frame_support_dofs(model: pin.Model, frame: int | str) -> IntArray:
     """Read-only velocity indices (k,) of every joint that moves ``frame`` (root included)."""
     layout = _layout(model)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from planner.contact import generation
 from planner.contact.checks import (
     check_state,
     com_of,
@@ -69,6 +70,41 @@ def test_break_and_create_on_flat(character: str) -> None:
         assert np.linalg.norm(contact.points.mean(axis=0)[:2] - target[:2]) < 0.05
         assert placed.state.differs_by_one(released.state)
         assert check_state(ctx, placed.state).valid
+
+
+def test_candidates_beyond_reach_skip_only_projections_that_fail(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A candidate further from the limb's root joint than the limb reaches is not projected
+    from the database seeds, and that loses nothing: on points from right under the released
+    foot to 1.2 m ahead, the projections found are those found with every seed tried, and
+    candidates with seeds that are skipped occur (as do candidates that are not). The
+    humanoid's feet: its database holds postures near the edge of its reach (the quadruped's
+    flat-ground candidates beyond reach have no seeds)."""
+    ctx, state = _flat_state("humanoid")
+    limb = state.contacts[0].limb
+    released = break_contact(ctx, state, limb)
+    assert released.ok, released.message
+    start = state.contact(limb).points.mean(axis=0)
+    normal = ctx.scene.surfaces[0].normal
+    beyond = []
+    found: list[list[list[float]]] = [[], []]
+    for distance in np.linspace(0.0, 1.2, 25):
+        target = start + np.array([distance, 0.0, 0.0])
+        for cand in generation._candidates(
+            ctx, released.state, limb, np.random.default_rng(0), [0], target, None, 0.0
+        ):
+            far = generation._beyond_reach(ctx, released.state, limb, cand.point, normal)
+            beyond.append(far and len(cand.seeds) > 0)
+            for k, check in enumerate((True, False)):
+                if not check:
+                    monkeypatch.setattr(generation, "_beyond_reach", lambda *_: False)
+                found[k] += [
+                    q.tolist() for q in generation._projections(ctx, released.state, limb, cand)
+                ]
+                monkeypatch.undo()
+    assert any(beyond) and not all(beyond)
+    assert found[0] == found[1]
 
 
 def test_a_release_asked_again_is_remembered_for_that_state_only() -> None:

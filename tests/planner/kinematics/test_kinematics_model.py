@@ -18,6 +18,7 @@ from planner.kinematics import (
     frame_placement,
     frame_placements,
     limb_dofs,
+    limb_reach,
     within_limits,
 )
 
@@ -87,3 +88,31 @@ def test_cached_tables_follow_limit_changes(biped: Robot) -> None:
     limits[7] = 0.1
     model.upperPositionLimit = limits
     assert bounded_dofs(model)[3][0] == pytest.approx(0.1)
+
+
+def test_limb_reach_bounds_every_posture_of_the_limb(biped: Robot, perturb: Perturb) -> None:
+    """``limb_reach``: the sum of the leg's segments (hip to knee 0.4 m, knee to ankle 0.4 m,
+    ankle to sole 0.08 m, plus an offset in the sole's frame); no posture of the leg puts
+    that point further from the hip, and the straight leg reaches it."""
+    model = biped.model
+    offset = np.array([0.03, 0.0, 0.0])
+    reach = limb_reach(model, "left_hip_z", "left_sole", offset)
+    assert reach == pytest.approx(0.8 + float(np.hypot(0.08, 0.03)))
+    assert limb_reach(model, "left_knee", "left_sole", np.zeros(3)) == pytest.approx(0.48)
+    with pytest.raises(ValueError, match="does not move"):
+        limb_reach(model, "right_hip_z", "left_sole", np.zeros(3))
+    data = model.createData()
+    hip, sole = model.getJointId("left_hip_z"), model.getFrameId("left_sole")
+    rng = np.random.default_rng(5)
+    farthest = 0.0
+    for _ in range(200):
+        q = perturb(model, rng, biped.q_stand, 2.0)
+        pin.framesForwardKinematics(model, data, q)
+        point = data.oMf[sole].act(offset)
+        farthest = max(farthest, float(np.linalg.norm(point - data.oMi[hip].translation)))
+    assert farthest <= reach + 1e-9
+    straight = biped.q_stand.copy()
+    straight[7:] = 0.0
+    pin.framesForwardKinematics(model, data, straight)
+    sole_origin = data.oMf[sole].translation - data.oMi[hip].translation
+    assert float(np.linalg.norm(sole_origin)) == pytest.approx(0.88)
