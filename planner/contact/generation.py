@@ -559,14 +559,28 @@ def _candidates(
     return out[: ctx.params.max_candidates]
 
 
-def _contact_task(ctx: ContactContext, limb: str, point: FloatArray, normal: FloatArray) -> Task:
+def _aim(
+    ctx: ContactContext, limb: str, point: FloatArray, normal: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Where ``limb``'s contact on ``point`` (3,) of a surface facing ``normal`` (3,) is aimed:
+    (the goal (3,), world; the point of the effector frame sent there (3,), its frame). A
+    point contact sends the frame's origin, lifted by the clearance and the offset's length;
+    a patch its offset point, lifted by the clearance."""
     spec = ctx.character.limb(limb)
     if spec.contact == "point":
-        goal = point + (ctx.params.clearance + float(np.linalg.norm(spec.offset))) * normal
+        lift = ctx.params.clearance + float(np.linalg.norm(spec.offset))
+        return point + lift * normal, np.zeros(3)
+    return point + ctx.params.clearance * normal, np.asarray(spec.offset, dtype=np.float64)
+
+
+def _contact_task(ctx: ContactContext, limb: str, point: FloatArray, normal: FloatArray) -> Task:
+    spec = ctx.character.limb(limb)
+    goal, _ = _aim(ctx, limb, point, normal)
+    if spec.contact == "point":
         return FramePositionTask(spec.frame_id, goal, np.zeros(3), Priority.CONTACT)
     return ContactNormalTask(
         spec.frame_id,
-        point + ctx.params.clearance * normal,
+        goal,
         normal,
         spec.normal,
         spec.offset,
@@ -663,23 +677,17 @@ def _projections(
 def _beyond_reach(
     ctx: ContactContext, state: ContactState, limb: str, point: FloatArray, normal: FloatArray
 ) -> bool:
-    """Whether the limb's contact, put on ``point`` (3,) of a surface facing ``normal`` (3,)
-    as :func:`_projections` aims it (lifted by the clearance), lies further from the origin
-    of the limb's root joint at ``state`` than the limb reaches (:func:`limb_reach`) plus
-    ``REACH_SLACK``: no posture of the limb alone puts it there."""
+    """Whether the limb's contact on ``point`` (3,) of a surface facing ``normal`` (3,), aimed
+    as :func:`_aim` aims it, lies further from the origin of the limb's root joint at
+    ``state`` than the limb reaches (:func:`limb_reach`) plus ``REACH_SLACK``: no posture of
+    the limb alone puts it there."""
     spec = ctx.character.limb(limb)
-    if spec.contact == "point":  # the frame's origin, lifted by the offset's length too
-        lift = ctx.params.clearance + float(np.linalg.norm(spec.offset))
-        offset: tuple[float, ...] = (0.0, 0.0, 0.0)
-    else:
-        lift, offset = ctx.params.clearance, tuple(np.asarray(spec.offset).tolist())
+    goal, offset = _aim(ctx, limb, point, normal)
     reach: float = ctx.cached(
-        ("reach", limb, offset),
-        lambda: limb_reach(ctx.model, spec.root_joint, spec.frame_id, np.asarray(offset)),
+        ("reach", limb), lambda: limb_reach(ctx.model, spec.root_joint, spec.frame_id, offset)
     )
     pin.forwardKinematics(ctx.model, ctx.pin_data, state.q)
     hip = ctx.pin_data.oMi[joint_id(ctx.model, spec.root_joint)].translation
-    goal = point + lift * normal
     return float(np.linalg.norm(goal - hip)) > reach + REACH_SLACK
 
 
