@@ -600,6 +600,13 @@ def contact_sequence(
         others = [c.limb for c in state.contacts if c.limb != moved and c.limb in legs]
         return not others or any(break_contact(ctx, state, x).ok for x in others)
 
+    def legs_behind(state: ContactState) -> list[str]:
+        # the legs ``state`` holds down behind its root along the guide (in contact order)
+        root, ahead = np.asarray(state.q[:3]), guide.tangent(s)
+        return [
+            c.limb for c in state.contacts if c.limb in legs and (c.position - root) @ ahead < 0
+        ]
+
     def stranding(before: ContactState, after: ContactState, moved: str | None = None) -> bool:
         # with ``release_guard`` (else for the ``guarded`` leg alone, after a backtrack):
         # whether a leg behind the root along the guide (an advance takes the body further
@@ -607,14 +614,8 @@ def contact_sequence(
         # from ``after``
         if not p.release_guard and guarded is None:
             return False
-        root, ahead = np.asarray(before.q[:3]), guide.tangent(s)
         behind = [
-            c.limb
-            for c in before.contacts
-            if c.limb in legs
-            and c.limb != moved
-            and (c.position - root) @ ahead < 0
-            and (p.release_guard or c.limb == guarded)
+            x for x in legs_behind(before) if x != moved and (p.release_guard or x == guarded)
         ]
         return any(
             break_contact(ctx, before, x).ok and not break_contact(ctx, after, x).ok for x in behind
@@ -623,12 +624,7 @@ def contact_sequence(
     def stranded() -> bool:
         # a stalled walk whose body cannot release a leg it left behind (the
         # ``release_guard``'s case: the planner retries with it)
-        root, ahead = np.asarray(current.q[:3]), guide.tangent(s)
-        return any(
-            not break_contact(ctx, current, c.limb).ok
-            for c in current.contacts
-            if c.limb in legs and (c.position - root) @ ahead < 0
-        )
+        return any(not break_contact(ctx, current, x).ok for x in legs_behind(current))
 
     def step(limb: str, target: FloatArray, reposition: bool = False) -> bool:
         nonlocal current, guarded
@@ -637,7 +633,7 @@ def contact_sequence(
         if old is not None:
             released = break_contact(ctx, current, limb)
             if not released.ok:
-                if limb in legs and (old.position - current.q[:3]) @ guide.tangent(s) < 0:
+                if limb in legs_behind(current):
                     held_back.append(limb)
                 return False
             base = released.state
