@@ -10,6 +10,8 @@ import itertools
 import numpy as np
 import pinocchio as pin
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from planner.contact.body import contact_placement
@@ -354,3 +356,36 @@ def test_when_no_swing_attempt_comes_clean_the_stopped_ones_are_tracked_whole() 
     assert not built.report.complete and built.report.colliding_keyframes > 0
     whole = {count for _, count in calls[attempts - 1 :]}
     assert whole == {len(built.keyframes)}
+
+
+@given(
+    keyframes=st.integers(min_value=1, max_value=2000),
+    calm=st.floats(min_value=0.0, max_value=tuning.TRIAL_COM_TOLERANCE),
+    lag=st.floats(min_value=tuning.TRIAL_COM_TOLERANCE, max_value=1.0, exclude_min=True),
+)
+def test_the_lagging_keyframes_a_plan_may_have_keep_its_99th_percentile_within_bounds(
+    keyframes: int, calm: float, lag: float
+) -> None:
+    """``lagging_allowed``: that many keyframes lagging (by any amount), the rest within
+    ``TRIAL_COM_TOLERANCE``, leave the plan's 99th percentile lag within it."""
+    allowed = builder.lagging_allowed(keyframes)
+    lags = np.full(keyframes, calm)
+    lags[:allowed] = lag
+    assert np.percentile(lags, 99) <= tuning.TRIAL_COM_TOLERANCE
+    assert allowed >= (keyframes - 1) // 100  # a 1 % budget, not less
+
+
+def test_a_short_phase_lagging_once_is_refused_only_past_the_plans_budget() -> None:
+    """A phase of four keyframes, one lagging 21 mm (a quarter of them, over
+    ``TRIAL_COM_LAG_SHARE``): refused when the plan has no lagging keyframe left to spend,
+    played when it has one; a lag beyond ``TRIAL_COM_MAX_LAG`` is refused whatever is left,
+    and a calm phase always plays."""
+    q = np.zeros(3)
+    lagging = builder._Segment([], [], [0.005, 0.004, 0.021, 0.006], q, 0.0)
+    assert builder._unclean(lagging, None, True, lag_budget=0) is not None
+    assert builder._unclean(lagging, None, True, lag_budget=1) is None
+    assert builder._unclean(lagging, None, False, lag_budget=0) is None  # lag does not matter
+    far = builder._Segment([], [], [0.005, tuning.TRIAL_COM_MAX_LAG + 0.01], q, 0.0)
+    assert builder._unclean(far, None, True, lag_budget=100) is not None
+    calm = builder._Segment([], [], [0.005] * 4, q, 0.0)
+    assert builder._unclean(calm, None, True, lag_budget=0) is None
