@@ -583,29 +583,22 @@ def lagging_allowed(keyframes: int) -> int:
     return max(0, math.floor(tuning.TRIAL_COM_LAG_BUDGET * (keyframes - 1) + 1e-9))
 
 
-def _unclean(
-    segment: _Segment, before: Keyframe | None, lag_matters: bool = True, lag_budget: int = 0
-) -> str | None:
+def _unclean(segment: _Segment, before: Keyframe | None, lag_budget: int = 0) -> str | None:
     """Why ``segment`` cannot be played as is, None when it can: a keyframe collides, a
-    stance contact slips beyond ``HOLD_TOLERANCE``, the COM lags its curve (if
-    ``lag_matters``) by more than ``TRIAL_COM_TOLERANCE`` in more than
-    ``TRIAL_COM_LAG_SHARE`` of the keyframes (unless the segment's lagging keyframes are
-    within ``lag_budget``, what the plan has left of ``TRIAL_COM_LAG_BUDGET``) or by more
-    than ``TRIAL_COM_MAX_LAG`` in one, or the root moves faster than ``MAX_ROOT_SPEED``
-    between two keyframes (from ``before``, the keyframe preceding the segment, if any)."""
+    stance contact slips beyond ``HOLD_TOLERANCE``, the COM lags its curve by more than
+    ``TRIAL_COM_TOLERANCE`` in more than ``TRIAL_COM_LAG_SHARE`` of the keyframes (unless the
+    segment's lagging keyframes are within ``lag_budget``, what the plan has left of
+    ``TRIAL_COM_LAG_BUDGET``) or by more than ``TRIAL_COM_MAX_LAG`` in one, or the root moves
+    faster than ``MAX_ROOT_SPEED`` between two keyframes (from ``before``, the keyframe
+    preceding the segment, if any)."""
     if not all(c.valid for c in segment.checks):
         return "a keyframe collides or a contact slips"
     lags = np.asarray(segment.com_errors, dtype=np.float64)
     lagging = lags > tuning.TRIAL_COM_TOLERANCE
-    if (
-        lag_matters
-        and lags.size
-        and (
-            float(lags.max()) > tuning.TRIAL_COM_MAX_LAG
-            or (
-                float(np.mean(lagging)) > tuning.TRIAL_COM_LAG_SHARE
-                and int(lagging.sum()) > lag_budget
-            )
+    if lags.size and (
+        float(lags.max()) > tuning.TRIAL_COM_MAX_LAG
+        or (
+            float(np.mean(lagging)) > tuning.TRIAL_COM_LAG_SHARE and int(lagging.sum()) > lag_budget
         )
     ):
         return f"the COM lags its curve by up to {float(lags.max()) * 1000:.0f} mm"
@@ -965,11 +958,7 @@ def _build_motion(
         previous = times[-1]
         if best.cut_short:
             break
-        lag_matters = not spec.phases[k].quasi_static
-        if (
-            abandon_unclean
-            and (unclean := _unclean(best, last_key, lag_matters, lag_budget)) is not None
-        ):
+        if abandon_unclean and (unclean := _unclean(best, last_key, lag_budget)) is not None:
             abandoned, abandoned_because = k, unclean
             break
         lag_budget -= sum(e > tuning.TRIAL_COM_TOLERANCE for e in best.com_errors)

@@ -991,7 +991,6 @@ def sequence_motion(
                     posture,
                     swings.get(k),
                     rigid_stance=trial,
-                    quasi_static=k in resting,
                     early=early,
                 )
             )

@@ -89,9 +89,6 @@ class MotionPhase:
     root position is then where the root is aimed at ``t0``). A flight implies it.
     rigid_stance : the stance contacts are equality constraints of the tracker's QP, not
     dominant costs (a takeoff push or a landing: the COM lags rather than drag them).
-    quasi_static : the COM stops between phases here (2PAC's fallback for a window of a
-    dynamic curve): a trial build that abandons unclean phases accepts its COM lagging the
-    curve, as a build of 2PAC's whole curve would (its collisions and slips still count).
     turn_from : for a flight, (4,) root quaternion (x, y, z, w) it takes off with: the trunk
     and the carried limbs' offsets from the COM turn from it to ``posture``'s orientation
     as the flight goes on, so that legs turning with the body do not cross (None: the trunk
@@ -116,7 +113,6 @@ class MotionPhase:
     flight: tuple[FlightLimb, ...] | None = None
     fast_com: bool = False
     rigid_stance: bool = False
-    quasi_static: bool = False
     turn_from: FloatArray | None = None
     posture_from: FloatArray | None = None
     early: Swing | None = None

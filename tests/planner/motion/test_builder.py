@@ -382,10 +382,9 @@ def test_a_short_phase_lagging_once_is_refused_only_past_the_plans_budget() -> N
     and a calm phase always plays."""
     q = np.zeros(3)
     lagging = builder._Segment([], [], [0.005, 0.004, 0.021, 0.006], q, 0.0)
-    assert builder._unclean(lagging, None, True, lag_budget=0) is not None
-    assert builder._unclean(lagging, None, True, lag_budget=1) is None
-    assert builder._unclean(lagging, None, False, lag_budget=0) is None  # lag does not matter
+    assert builder._unclean(lagging, None, lag_budget=0) is not None
+    assert builder._unclean(lagging, None, lag_budget=1) is None
     far = builder._Segment([], [], [0.005, tuning.TRIAL_COM_MAX_LAG + 0.01], q, 0.0)
-    assert builder._unclean(far, None, True, lag_budget=100) is not None
+    assert builder._unclean(far, None, lag_budget=100) is not None
     calm = builder._Segment([], [], [0.005] * 4, q, 0.0)
-    assert builder._unclean(calm, None, True, lag_budget=0) is None
+    assert builder._unclean(calm, None, lag_budget=0) is None
