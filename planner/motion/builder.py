@@ -583,6 +583,11 @@ def lagging_allowed(keyframes: int) -> int:
     return max(0, math.floor(tuning.TRIAL_COM_LAG_BUDGET * (keyframes - 1) + 1e-9))
 
 
+def _lagging(com_errors: Sequence[float]) -> int:
+    """How many of ``com_errors`` (m, keyframe COM to curve) exceed ``TRIAL_COM_TOLERANCE``."""
+    return sum(e > tuning.TRIAL_COM_TOLERANCE for e in com_errors)
+
+
 def _unclean(segment: _Segment, before: Keyframe | None, lag_budget: int = 0) -> str | None:
     """Why ``segment`` cannot be played as is, None when it can: a keyframe collides, a
     stance contact slips beyond ``HOLD_TOLERANCE``, the COM lags its curve by more than
@@ -837,9 +842,7 @@ def _build_motion(
     q = kept.q
     segments: list[_Segment] = [kept] if kept.keyframes else []
     # lagging keyframes the plan may still have (``TRIAL_COM_LAG_BUDGET``)
-    lag_budget = lagging_allowed(len(kept.keyframes) + len(grid)) - sum(
-        e > tuning.TRIAL_COM_TOLERANCE for e in kept.com_errors
-    )
+    lag_budget = lagging_allowed(len(kept.keyframes) + len(grid)) - _lagging(kept.com_errors)
     previous: float | None = kept.keyframes[-1].t if kept.keyframes else None
     retried = sum(
         1
@@ -961,7 +964,7 @@ def _build_motion(
         if abandon_unclean and (unclean := _unclean(best, last_key, lag_budget)) is not None:
             abandoned, abandoned_because = k, unclean
             break
-        lag_budget -= sum(e > tuning.TRIAL_COM_TOLERANCE for e in best.com_errors)
+        lag_budget -= _lagging(best.com_errors)
     keyframes = [key for s in segments for key in s.keyframes]
     checks = [c for s in segments for c in s.checks]
     com_errors = [e for s in segments for e in s.com_errors]
