@@ -599,12 +599,10 @@ def _unclean(segment: _Segment, before: Keyframe | None, lag_budget: int = 0) ->
     if not all(c.valid for c in segment.checks):
         return "a keyframe collides or a contact slips"
     lags = np.asarray(segment.com_errors, dtype=np.float64)
-    lagging = lags > tuning.TRIAL_COM_TOLERANCE
+    lagging = _lagging(segment.com_errors)
     if lags.size and (
         float(lags.max()) > tuning.TRIAL_COM_MAX_LAG
-        or (
-            float(np.mean(lagging)) > tuning.TRIAL_COM_LAG_SHARE and int(lagging.sum()) > lag_budget
-        )
+        or (lagging / lags.size > tuning.TRIAL_COM_LAG_SHARE and lagging > lag_budget)
     ):
         return f"the COM lags its curve by up to {float(lags.max()) * 1000:.0f} mm"
     keys = ([before] if before is not None else []) + segment.keyframes
