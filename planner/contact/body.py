@@ -29,6 +29,7 @@ from planner.character import Character, Limb
 from planner.contact.reachability import ground_limbs
 from planner.contact.state import LimbContact
 from planner.motion import tuning as motion_tuning
+from planner.motion.clearance import PairBroadPhase, shape_poses
 from planner.scene import Surface
 
 FloatArray = NDArray[np.float64]
@@ -225,7 +226,12 @@ def self_collides(character: Character, q: FloatArray, data: Any, geometry_data:
     ``data`` and ``geometry_data`` are the character's Pinocchio scratch data. Where the
     character's motion geometry (the URDF's own shapes, which the keyframe checker tests)
     is not its planning geometry, those shapes count too, when two of them overlap by more
-    than ``STATE_SELF_PENETRATION``: the motion builder could not hold such a state."""
+    than ``STATE_SELF_PENETRATION``: the motion builder could not hold such a state.
+
+    Of the motion geometry's pairs (a real robot's URDF: over a thousand), only those whose
+    bounding capsules overlap by more than that are tested (:class:`PairBroadPhase`, exact:
+    a shape's penetration into another is at most their capsules'); most states have a few
+    dozen."""
     q = np.asarray(q, dtype=np.float64)
     model = character.model
     if pin.computeCollisions(model, data, character.geometry, geometry_data, q, True):
@@ -233,21 +239,42 @@ def self_collides(character: Character, q: FloatArray, data: Any, geometry_data:
     motion = _motion_geometry_data(character)
     if motion is None:
         return False
-    pin.updateGeometryPlacements(model, data, character.motion_geometry, motion)
-    return bool(pin.computeCollisions(character.motion_geometry, motion, True))
+    geometry = character.motion_geometry
+    pin.updateGeometryPlacements(model, data, geometry, motion.data)
+    near = motion.broad.near_at(shape_poses(motion.data), -motion_tuning.STATE_SELF_PENETRATION)
+    if not near:
+        return False
+    tested = np.zeros(motion.map_shape, dtype=bool)
+    pairs = motion.broad.pair_array[near]
+    tested[pairs[:, 0], pairs[:, 1]] = tested[pairs[:, 1], pairs[:, 0]] = True
+    motion.data.setActiveCollisionPairs(geometry, tested, True)
+    return bool(pin.computeCollisions(geometry, motion.data, True))
+
+
+@dataclass(frozen=True, slots=True)
+class _MotionCollision:
+    """A thread's scratch for the motion geometry's self-collision test: its GeometryData
+    (collision requests reporting only overlaps deeper than ``STATE_SELF_PENETRATION``; the
+    pairs tested are switched on per query), the broad phase of its pairs (it remembers
+    the gaps of the previous queries) and the shape of the pair map, (G, G)."""
+
+    data: Any
+    broad: PairBroadPhase
+    map_shape: tuple[int, int]
 
 
 _MOTION_DATA = threading.local()
 
 
-def _motion_geometry_data(character: Character) -> Any | None:
-    """This thread's GeometryData of ``character.motion_geometry``, its collision requests
-    reporting only overlaps deeper than ``STATE_SELF_PENETRATION`` (None when the motion
-    geometry is the planning geometry)."""
+def _motion_geometry_data(character: Character) -> _MotionCollision | None:
+    """This thread's :class:`_MotionCollision` of ``character.motion_geometry`` (None when
+    the motion geometry is the planning geometry)."""
     geometry = character.motion_geometry
     if geometry is character.geometry:
         return None
-    cache: dict[int, tuple[Any, Any]] | None = getattr(_MOTION_DATA, "by_geometry", None)
+    cache: dict[int, tuple[Any, _MotionCollision]] | None = getattr(
+        _MOTION_DATA, "by_geometry", None
+    )
     if cache is None:
         cache = _MOTION_DATA.by_geometry = {}
     hit = cache.get(id(geometry))
@@ -255,8 +282,9 @@ def _motion_geometry_data(character: Character) -> Any | None:
         made = pin.GeometryData(geometry)
         for request in made.collisionRequests:
             request.security_margin = -motion_tuning.STATE_SELF_PENETRATION
+        count = len(geometry.geometryObjects)
         if len(cache) >= 8:
             cache.clear()
-        hit = (geometry, made)
+        hit = (geometry, _MotionCollision(made, PairBroadPhase(geometry), (count, count)))
         cache[id(geometry)] = hit
     return hit[1]
