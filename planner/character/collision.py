@@ -274,7 +274,10 @@ def segment_distances(p1: FloatArray, q1: FloatArray, p2: FloatArray, q2: FloatA
     # arrays (this runs in every control step's broad phase)
     unit = _unit_clip
     s = np.where(denom > eps, unit((b * f - c * e) / np.maximum(denom, eps)), 0.0)
-    t = (b * s + f) / e_safe
+    # a second segment that is a point (a sphere's capsule): the first's point nearest it
+    point = e <= eps
+    s = np.where(point, unit(-c / a_safe), s)
+    t = np.where(point, 0.0, (b * s + f) / e_safe)
     low, high = t < 0.0, t > 1.0
     s = np.where(low, unit(-c / a_safe), s)
     s = np.where(high, unit((b - c) / a_safe), s)
@@ -312,7 +315,10 @@ def few_segment_distances(
         s = 0.0
         if denom > eps:
             s = min(max((b * f - c * e) / denom, 0.0), 1.0)
-        t = (b * s + f) / e_safe
+        if e <= eps:  # the second segment a point
+            s, t = min(max(-c / a_safe, 0.0), 1.0), 0.0
+        else:
+            t = (b * s + f) / e_safe
         if t < 0.0:
             s, t = min(max(-c / a_safe, 0.0), 1.0), 0.0
         elif t > 1.0:

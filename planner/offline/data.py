@@ -25,9 +25,11 @@ from planner.offline.build import OfflineParams, build_all
 from planner.offline.database import SampleDatabase
 from planner.shapes import ConvexPolytope
 
-CODE_VERSION = "offline-3"
+CODE_VERSION = "offline-4"
 """Version of the offline computation; part of the cache key (3: capsule-mode shapes end at
-their tip frames, patch effectors carry a contact plate)."""
+their tip frames, patch effectors carry a contact plate; 4: the self-collision test of the
+samples measures a capsule against a sphere (a foot) to the capsule's nearest point, not to
+its first end, and drops the postures where they overlap)."""
 
 FloatArray = NDArray[np.float64]
 

@@ -7,6 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
 
 from planner.character import get_character, real_robot_ids
 from planner.motion.checker import KeyframeChecker
@@ -188,3 +190,30 @@ def test_the_pair_broad_phase_misses_no_pair_within_its_margin(cid: str) -> None
         near = broad.near(gdata, margin)
         assert set(near) == set(np.flatnonzero(d <= margin).tolist()) & set(carried)
         assert set(near) <= {k for k in carried if d[k] <= margin}
+
+
+@settings(max_examples=200, deadline=None)
+@example(ends=[0.0, 0.0, 1.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])  # a point mid-way
+@example(ends=[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.3, 0.0, 1.0, 0.3, 0.0, -1.0])  # the other way
+@given(
+    ends=st.lists(
+        st.floats(-1.0, 1.0, allow_nan=False, allow_infinity=False), min_size=12, max_size=12
+    )
+)
+def test_segment_distances_are_the_closest_points_distance(ends: list[float]) -> None:
+    """The capsule gap of the broad phases is the distance between the two segments'
+    closest points: no pair of their points is closer, and points found by a fine search
+    along both come within the search's resolution of it. A segment may be a point (a
+    sphere's capsule: the feet of the hexapod and the quadrupeds): a point beside the middle
+    of a segment is measured to that middle, not to the segment's first end."""
+    from planner.character.collision import segment_distances
+
+    p1, q1, p2, q2 = (np.array(ends[3 * k : 3 * k + 3]) for k in range(4))
+    distance = float(segment_distances(p1[None], q1[None], p2[None], q2[None])[0])
+    u = np.linspace(0.0, 1.0, 201)
+    first = p1 + u[:, None] * (q1 - p1)
+    second = p2 + u[:, None] * (q2 - p2)
+    closest = float(np.min(np.linalg.norm(first[:, None] - second[None], axis=2)))
+    step = (np.linalg.norm(q1 - p1) + np.linalg.norm(q2 - p2)) / 200.0
+    assert distance <= closest + 1e-9
+    assert closest <= distance + step
