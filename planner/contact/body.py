@@ -236,7 +236,7 @@ def self_collides(character: Character, q: FloatArray, data: Any, geometry_data:
     model = character.model
     if pin.computeCollisions(model, data, character.geometry, geometry_data, q, True):
         return True
-    motion = _motion_geometry_data(character)
+    motion = _motion_collision(character)
     if motion is None:
         return False
     geometry = character.motion_geometry
@@ -266,7 +266,7 @@ class _MotionCollision:
 _MOTION_DATA = threading.local()
 
 
-def _motion_geometry_data(character: Character) -> _MotionCollision | None:
+def _motion_collision(character: Character) -> _MotionCollision | None:
     """This thread's :class:`_MotionCollision` of ``character.motion_geometry`` (None when
     the motion geometry is the planning geometry)."""
     geometry = character.motion_geometry
