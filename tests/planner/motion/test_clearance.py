@@ -195,6 +195,7 @@ def test_the_pair_broad_phase_misses_no_pair_within_its_margin(cid: str) -> None
 @settings(max_examples=200, deadline=None)
 @example(ends=[0.0, 0.0, 1.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])  # a point mid-way
 @example(ends=[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.3, 0.0, 1.0, 0.3, 0.0, -1.0])  # the other way
+@example(ends=[0.0, 0.0, 0.0, 5e-4, 0.0, 0.0, 6e-4, -3e-4, 5e-5, 3e-4, 3e-4, 5e-5])  # crossing, mm
 @given(
     ends=st.lists(
         st.floats(-1.0, 1.0, allow_nan=False, allow_infinity=False), min_size=12, max_size=12
@@ -205,7 +206,10 @@ def test_segment_distances_are_the_closest_points_distance(ends: list[float]) ->
     closest points: no pair of their points is closer, and points found by a fine search
     along both come within the search's resolution of it. A segment may be a point (a
     sphere's capsule: the feet of the hexapod and the quadrupeds): a point beside the middle
-    of a segment is measured to that middle, not to the segment's first end."""
+    of a segment is measured to that middle, not to the segment's first end; two short
+    segments crossing at an angle are not taken for parallel. To a micrometre, and to 1e-5
+    of the lengths for segments within 1e-5 rad of parallel (measured from the first one's
+    start)."""
     from planner.character.collision import segment_distances
 
     p1, q1, p2, q2 = (np.array(ends[3 * k : 3 * k + 3]) for k in range(4))
@@ -214,6 +218,6 @@ def test_segment_distances_are_the_closest_points_distance(ends: list[float]) ->
     first = p1 + u[:, None] * (q1 - p1)
     second = p2 + u[:, None] * (q2 - p2)
     closest = float(np.min(np.linalg.norm(first[:, None] - second[None], axis=2)))
-    step = (np.linalg.norm(q1 - p1) + np.linalg.norm(q2 - p2)) / 200.0
-    assert distance <= closest + 1e-9
-    assert closest <= distance + step
+    lengths = float(np.linalg.norm(q1 - p1) + np.linalg.norm(q2 - p2))
+    assert distance <= closest + 1e-5 * lengths + 1e-6
+    assert closest <= distance + lengths / 200.0 + 1e-12
