@@ -953,6 +953,10 @@ def _solve(
     refining the KKT solves first (``SOLVER_REFINEMENT``), again with refinement when that
     run stalls short of an answer (``_SETTLED``); at most ``SOLVER_MAX_ITERATIONS`` each."""
     a = sparse.vstack([a_eq, a_in]).tocsc()
+    # Clarabel factors every stored entry: a first round linearised about accelerations of
+    # zero stores a third of its Eq. 1 entries as 0.0 (the torque's c x a_ terms). Without
+    # them the hexapod walk's two QPs took 72 and 80 ms instead of 81 and 95
+    a.eliminate_zeros()
     b = np.concatenate([b_eq, b_in])
     cones = [clarabel.ZeroConeT(a_eq.shape[0]), clarabel.NonnegativeConeT(a_in.shape[0])]
     for refine in (SOLVER_REFINEMENT, True):
