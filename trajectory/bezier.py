@@ -84,7 +84,7 @@ class BezierCurve:
         slack = _TIME_TOL * max(1.0, span)
         if tt.min() < self.t0 - slack or tt.max() > self.t1 + slack:
             raise ValueError(f"t: out of range [{self.t0}, {self.t1}]")
-        out: FloatArray = np.clip((tt - self.t0) / span, 0.0, 1.0)
+        out: FloatArray = np.minimum(np.maximum((tt - self.t0) / span, 0.0), 1.0)
         return out
 
     def at(self, t: float) -> FloatArray:

@@ -545,7 +545,8 @@ def _margin_dual(G: FloatArray, w: FloatArray, weight: float) -> EquilibriumMarg
     lam = -res.dual
     b0 = float(lam[m])
     weights = lam[:m] + b0
-    residual = float(np.linalg.norm(G.T @ weights - ws))
+    miss = G.T @ weights - ws
+    residual = math.sqrt(float(miss @ miss))
     gap = abs(b0 - float(res.x @ ws))
     if residual > 1e-6 or gap > 1e-6 or float(lam[:m].min()) < -1e-7:
         return None

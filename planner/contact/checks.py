@@ -5,6 +5,7 @@ All positions are world frame, metres; COM polytopes follow 2PAC Eq. 3-4.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -71,7 +72,8 @@ def hold_error(ctx: ContactContext, q: FloatArray, contacts: Sequence[LimbContac
     worst = 0.0
     for c in contacts:
         pts = contact_points_at(ctx, c.limb, effector_pose(ctx, c.limb), c.normal)
-        worst = max(worst, float(np.max(np.linalg.norm(pts - c.points, axis=1))))
+        gaps = pts - c.points
+        worst = max(worst, math.sqrt(float((gaps * gaps).sum(axis=1).max())))
     return worst
 
 
@@ -144,16 +146,21 @@ def balance_margin(ctx: ContactContext, contacts: Sequence[LimbContact], com: Fl
 
 def contact_on_surface(ctx: ContactContext, contact: LimbContact) -> bool:
     """Contact points within ``surface_tolerance`` of the surface, inside it, normals aligned
-    (``body.lies_on`` with the context's tolerances)."""
+    (``body.lies_on`` with the context's tolerances); remembered per contact object."""
     if contact.surface < 0 or contact.surface >= len(ctx.scene.surfaces):
         return False
-    return lies_on(
+    on: bool = ctx.per_state(  # a contact is checked again in every state that holds it
         contact,
-        ctx.scene.surfaces[contact.surface],
-        ctx.character.limb(contact.limb),
-        height_tolerance=ctx.params.surface_tolerance,
-        normal_tolerance=ctx.params.normal_tolerance,
+        "on_surface",
+        lambda: lies_on(
+            contact,
+            ctx.scene.surfaces[contact.surface],
+            ctx.character.limb(contact.limb),
+            height_tolerance=ctx.params.surface_tolerance,
+            normal_tolerance=ctx.params.normal_tolerance,
+        ),
     )
+    return on
 
 
 _REQUEST = coal.CollisionRequest()

@@ -495,6 +495,20 @@ def _detours(point: FloatArray, banned: FloatArray) -> list[FloatArray]:
     return out
 
 
+def _limb_reach(ctx: ContactContext, limb: str, hip_root: FloatArray) -> float:
+    """m, the farthest the effector of ``limb`` gets from its root joint at ``hip_root`` (3,)
+    (root frame, taken to the micrometre) over its database's samples; remembered per
+    database and root joint position (fixed on the trunk for a leg, up to round-off)."""
+    db = ctx.data.limb(limb).database
+    hip = np.round(hip_root, 6)
+    farthest: float = ctx.per_state(
+        db,
+        ("reach", hip.tobytes()),
+        lambda: float(np.max(np.linalg.norm(db.positions - hip, axis=1))),
+    )
+    return farthest
+
+
 def _candidates(
     ctx: ContactContext,
     state: ContactState,
@@ -517,7 +531,7 @@ def _candidates(
     nominal = root[:3, :3] @ db.positions[0] + root[:3, 3]
     base = np.asarray(ctx.pin_data.oMi[ctx.model.getJointId(spec.root_joint)].translation)
     hip_root = root[:3, :3].T @ (base - root[:3, 3])
-    reach = float(np.max(np.linalg.norm(db.positions - hip_root, axis=1))) + ctx.params.body_reach
+    reach = _limb_reach(ctx, limb, hip_root) + ctx.params.body_reach
     radius = _patch_radius(ctx, limb)
     desired = target if target is not None else 0.5 * (current + nominal)
     others = [c for c in state.contacts if c.limb != limb]

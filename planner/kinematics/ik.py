@@ -242,7 +242,7 @@ def _compile(
 
 def _validate_q(model: pin.Model, q0: ArrayLike) -> FloatArray:
     q = np.array(q0, dtype=np.float64)
-    if q.shape != (model.nq,) or not np.all(np.isfinite(q)):
+    if q.shape != (model.nq,) or not np.isfinite(q).all():
         raise ValueError(f"q0 must be a finite ({model.nq},) configuration")
     return q
 
@@ -466,8 +466,8 @@ class _Solver:
             residuals[self.posture_index, 0] = math.sqrt(float(weighted @ weighted))
         self.residuals = residuals
         ok = bool(
-            np.all(residuals[self.checked, 0] <= self.tolerance)
-            and np.all(residuals[self.checked, 1] <= self.angular_tolerance)
+            (residuals[self.checked, 0] <= self.tolerance).all()
+            and (residuals[self.checked, 1] <= self.angular_tolerance).all()
         )
         return float(self.ew @ self.ew), ok, residuals
 
@@ -475,7 +475,7 @@ class _Solver:
         model, act = self.model, self.act
         self.residuals = None
         q = q_init.copy()
-        q[self.qb_all] = np.clip(q[self.qb_all], self.lo_all, self.hi_all)
+        q[self.qb_all] = np.minimum(np.maximum(q[self.qb_all], self.lo_all), self.hi_all)
         q = np.asarray(pin.normalize(model, q), dtype=np.float64)
         merit, ok, residuals = self.evaluate(q)
         best_q, best_merit, best_ok, best_residuals = q, merit, ok, residuals
@@ -501,7 +501,7 @@ class _Solver:
             v = np.zeros(model.nv)
             v[act] = step
             q = np.asarray(pin.integrate(model, q, v), dtype=np.float64)
-            q[self.b_q] = np.clip(q[self.b_q], self.b_lo, self.b_hi)
+            q[self.b_q] = np.minimum(np.maximum(q[self.b_q], self.b_lo), self.b_hi)
             merit_new, ok, residuals = self.evaluate(q)
             # Damping grows while the error grows (divergence guard) and relaxes otherwise.
             scale = scale * 10.0 if merit_new > 2.0 * merit else max(scale * 0.5, 1.0)
@@ -638,7 +638,7 @@ def _clamped_step(
     free = np.ones(jw.shape[1], dtype=bool)
     for _ in range(_MAX_CLAMP_ROUNDS):
         newly = b_act[over]
-        step[newly] = np.clip(sb[over], lo_step[over], hi_step[over])
+        step[newly] = np.minimum(np.maximum(sb[over], lo_step[over]), hi_step[over])
         free[newly] = False
         fixed = ~free
         step[free] = _regularised_step(jw[:, free], ew - jw[:, fixed] @ step[fixed], lam, dq0[free])
@@ -646,5 +646,5 @@ def _clamped_step(
         over = ((sb < lo_step) | (sb > hi_step)) & free[b_act]
         if not over.any():
             break
-    step[b_act] = np.clip(step[b_act], lo_step, hi_step)
+    step[b_act] = np.minimum(np.maximum(step[b_act], lo_step), hi_step)
     return step

@@ -123,6 +123,7 @@ class _Layout:
     """Index tables of one model, computed once (pybind element access costs ~1 us each)."""
 
     size: tuple[int, int, int, int]  # nq, nv, njoints, nframes: a cheap staleness check
+    limits: bytes  # every joint's lower then upper position limits: the other one
     bounded_v: IntArray
     bounded_q: IntArray
     lower: FloatArray
@@ -143,12 +144,11 @@ def _layout(model: pin.Model) -> _Layout:
     size = (int(model.nq), int(model.nv), int(model.njoints), int(model.nframes))
     lower_all = np.asarray(model.lowerPositionLimit, dtype=np.float64)
     upper_all = np.asarray(model.upperPositionLimit, dtype=np.float64)
+    limits = lower_all.tobytes() + upper_all.tobytes()  # compared as bytes: ~4 us less a call
     entry = _LAYOUTS.get(id(model))
-    if entry is not None and entry[0]() is model and entry[1].size == size:
+    if entry is not None and entry[0]() is model:
         cached = entry[1]
-        if np.array_equal(lower_all[cached.bounded_q], cached.lower) and np.array_equal(
-            upper_all[cached.bounded_q], cached.upper
-        ):
+        if cached.size == size and cached.limits == limits:
             return cached
     nqs = np.array(list(model.nqs), dtype=np.int64)
     nvs = np.array(list(model.nvs), dtype=np.int64)
@@ -167,7 +167,7 @@ def _layout(model: pin.Model) -> _Layout:
     lo.flags.writeable = False
     hi.flags.writeable = False
     parents = np.array([int(f.parentJoint) for f in model.frames], dtype=np.int64)
-    layout = _Layout(size, vi, qi, lo, hi, idx_v, nvs, parents)
+    layout = _Layout(size, limits, vi, qi, lo, hi, idx_v, nvs, parents)
     for key in [k for k, (ref, _) in _LAYOUTS.items() if ref() is None]:
         del _LAYOUTS[key]
     _LAYOUTS[id(model)] = (weakref.ref(model), layout)

@@ -35,7 +35,7 @@ TIER_WEIGHTS: dict[Priority, float] = {
 
 def _vector(value: object, size: int, name: str) -> FloatArray:
     out = np.array(value, dtype=np.float64)
-    if out.shape != (size,) or not np.all(np.isfinite(out)):
+    if out.shape != (size,) or not np.isfinite(out).all():
         raise ValueError(f"{name} must be a finite ({size},) array, got shape {out.shape}")
     out.flags.writeable = False
     return out
