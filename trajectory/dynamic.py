@@ -10,7 +10,7 @@ c x a ~= c_ x a + c x a_ - c_ x a_, and the convex QP is solved again about its 
 (sequential convex programming). Weights carry a margin (a fraction of the body weight per
 generator) that absorbs the linearisation error; the answer is accepted only when the
 nonlinear Eq. 1 holds at every collocation time (within ``EQ1_TOLERANCE``, checked with the
-same robustness LP as ``validate_dynamics``: ``trajectory.equilibrium.holds_at``).
+same robustness LP as ``validate_dynamics``: ``trajectory.equilibrium.holds``).
 
 Units: metres, seconds, world frame z up; weights are in body weights (m g) for
 conditioning. The QP is sparse and solved by Clarabel (interior point, deterministic). The
@@ -36,7 +36,7 @@ from trajectory._types import GRAVITY, BoolArray, FloatArray, as_float_array
 from trajectory.bezier import BezierCurve, PiecewiseBezier, bernstein
 from trajectory.com import validate_dynamics
 from trajectory.contacts import ContactPhase
-from trajectory.equilibrium import holds_at
+from trajectory.equilibrium import holds
 from trajectory.polytope import Halfspaces
 
 P = ParamSpec("P")
@@ -156,9 +156,11 @@ class _Layout:
         self.points = degree + 1
         self.n_curve = self.n_phases * self.points * 3
         self.weights_at: list[list[int]] = []
+        self.generators: list[int] = []  # per phase, its generator count m
         offset = self.n_curve
         for phase, count in zip(phases, samples, strict=True):
             m = phase.wrench_generators.shape[0]
+            self.generators.append(m)
             row = []
             for _ in range(count):
                 row.append(offset)
@@ -169,6 +171,11 @@ class _Layout:
     def point(self, phase: int, index: int) -> int:
         """Index of the x coordinate of control point ``index`` of ``phase``."""
         return (phase * self.points + index) * 3
+
+    def weights_of(self, x: FloatArray, phase: int) -> FloatArray:
+        """(s, m) the generator weights of ``phase``'s samples in the answer ``x`` (n,)."""
+        first, m = self.weights_at[phase], self.generators[phase]
+        return x[first[0] : first[0] + m * len(first)].reshape(len(first), m)
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -353,9 +360,10 @@ def _solve_rounds(
         # by phase: a sample on a break is the later segment's either way)
         positions, accelerations = curve(all_times), curve.derivative(2)(all_times)
         lin = [(positions[k], accelerations[k]) for k in per_phase]
+        given = [layout.weights_of(x, j) for j in range(len(phases))]
         if repair_left:
             broken = [] if unsettled is None else curve_rows.broken_phases(unsettled)
-            failing = _failing_phases(phases, lin, broken)
+            failing = _failing_phases(phases, lin, given, broken)
             valid = complete and failing == []
             if failing:
                 windows = _repair_windows(failing, len(phases))
@@ -379,7 +387,8 @@ def _solve_rounds(
                     break
         else:
             valid = complete and all(
-                _passes(phase, sample) for phase, sample in zip(phases, lin, strict=True)
+                _passes(phase, sample, weights)
+                for phase, sample, weights in zip(phases, lin, given, strict=True)
             )
         if not complete:
             # an answer breaking rows left out (trust box, kinematics) is only the next
@@ -391,27 +400,32 @@ def _solve_rounds(
     return DynamicOutcome(result, None)
 
 
-def _passes(phase: ContactPhase, samples: tuple[FloatArray, FloatArray]) -> bool:
+def _passes(
+    phase: ContactPhase, samples: tuple[FloatArray, FloatArray], weights: FloatArray
+) -> bool:
     """Whether Eq. 1 holds at each of a phase's collocation samples (positions and
     accelerations, (s, 3) each), within ``EQ1_TOLERANCE`` (the tolerance of
-    ``validate_dynamics``)."""
-    return bool(holds_at(phase, *samples)[0].all())
+    ``validate_dynamics``); ``weights`` (s, m): the QP's generator weights there, which
+    settle most samples without their LP (``trajectory.equilibrium.holds``)."""
+    return bool(holds(phase, *samples, weights=weights).all())
 
 
 def _failing_phases(
     phases: Sequence[ContactPhase],
     samples: Sequence[tuple[FloatArray, FloatArray]],
+    weights: Sequence[FloatArray],
     broken: Sequence[int],
 ) -> list[int] | None:
     """The phases (increasing) that fail Eq. 1 at a collocation sample (per phase, positions
-    and accelerations (s, 3)) or are in ``broken``; None as soon as their repair windows
-    would cover more than ``REPAIR_MAX_SHARE`` of the phases (the rest is not checked)."""
+    and accelerations (s, 3), and the QP's generator weights (s, m)) or are in ``broken``;
+    None as soon as their repair windows would cover more than ``REPAIR_MAX_SHARE`` of the
+    phases (the rest is not checked)."""
     failing: list[int] = []
     limit = REPAIR_MAX_SHARE * len(phases)
     if sum(b - a for a, b in _repair_windows(sorted(broken), len(phases))) > limit:
         return None  # the phases that break a row are too many already
-    for j, (phase, sample) in enumerate(zip(phases, samples, strict=True)):
-        if j in broken or not _passes(phase, sample):
+    for j, (phase, sample, given) in enumerate(zip(phases, samples, weights, strict=True)):
+        if j in broken or not _passes(phase, sample, given):
             failing.append(j)
             if sum(b - a for a, b in _repair_windows(failing, len(phases))) > limit:
                 return None

@@ -669,12 +669,12 @@ def test_the_failing_phases_are_found_until_their_windows_would_cover_half(
 ) -> None:
     checked: list[int] = []
 
-    def passes(phase: Any, sample: Any) -> bool:
+    def passes(phase: Any, sample: Any, weights: Any) -> bool:
         checked.append(phase)
         return phase not in bad
 
     monkeypatch.setattr(trajectory.dynamic, "_passes", passes)
     phases: list[Any] = list(range(40))
     samples: list[Any] = [None] * 40
-    assert trajectory.dynamic._failing_phases(phases, samples, broken) == expected
+    assert trajectory.dynamic._failing_phases(phases, samples, samples, broken) == expected
     assert len(checked) == scanned - len([j for j in broken if j < scanned])

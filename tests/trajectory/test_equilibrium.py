@@ -301,6 +301,57 @@ def test_holds_at_is_the_margin_within_the_tolerance(seed: int, k: int) -> None:
     np.testing.assert_array_equal(exact[finite], feasible[finite])
 
 
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), k=st.integers(1, 4), noise=st.sampled_from([0.0, 1e-3]))
+def test_holds_without_the_lp_answers_what_the_lp_does(seed: int, k: int, noise: float) -> None:
+    """The samples that generator weights settle without the LP (the least-norm weights, or
+    given weights corrected to the wrench) are answered as the LP answers them, with weights
+    given near those of a sample's wrench or not at all, and some samples are settled so
+    (the robust ones: a COM over its contacts, still)."""
+    phase, coms, accs = _samples(seed, k)
+    rng = np.random.default_rng(seed + 1)
+    want = trajectory.holds_at(phase, coms, accs)[0]
+    np.testing.assert_array_equal(equilibrium.holds(phase, coms, accs), want)
+    feasible, _ = equilibrium.margins_at(phase, coms, accs)
+    weights = np.array(
+        [
+            equilibrium.equilibrium_margin(phase, c, a).weights / (phase.mass * equilibrium.GRAVITY)
+            if f
+            else rng.uniform(0.0, 1.0, phase.wrench_generators.shape[0])
+            for c, a, f in zip(coms, accs, feasible, strict=True)
+        ]
+    )
+    weights += noise * rng.standard_normal(weights.shape)
+    got = equilibrium.holds(phase, coms, accs, weights=weights)
+    np.testing.assert_array_equal(got, want)
+
+
+def test_holds_settles_a_still_com_over_its_feet_without_the_lp(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Four point feet round a still COM: the least-norm weights are positive and the LP is
+    not asked; a COM far outside them is asked of the LP, which refuses it."""
+    up = np.array([0.0, 0.0, 1.0])
+    corners = [(0.3, 0.2), (0.3, -0.2), (-0.3, 0.2), (-0.3, -0.2)]
+    phase = ContactPhase(
+        [Contact(points=np.array([[x, y, 0.0]]), normal=up, mu=0.7) for x, y in corners],
+        mass=30.0,
+    )
+    asked: list[int] = []
+    lp = equilibrium.holds_at
+
+    def counted(*args, **kwargs):  # type: ignore[no-untyped-def]
+        asked.append(len(args[1]))
+        return lp(*args, **kwargs)
+
+    monkeypatch.setattr(equilibrium, "holds_at", counted)
+    still = np.zeros((1, 3))
+    assert equilibrium.holds(phase, np.array([[0.0, 0.0, 0.5]]), still).tolist() == [True]
+    assert asked == []
+    assert equilibrium.holds(phase, np.array([[2.0, 0.0, 0.5]]), still).tolist() == [False]
+    assert asked == [1]
+
+
 def _two_point_feet() -> ContactPhase:
     """Two point feet 0.6 m apart on level ground (a trot's diagonal): a cone of rank 5, no
     torque about the line between them."""
