@@ -92,6 +92,26 @@ def test_joint_limits_hold_when_pushed_against_them(biped: Robot) -> None:
     assert within_limits(model, solve_ik(model, start, [_posture(biped)], max_iterations=3).q)
 
 
+def test_a_settled_solve_stops_where_more_iterations_would_leave_it(
+    biped: Robot, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A target a metre above the sole: once its undamped steps no longer move the leg (the
+    knee against its limit), the solve stops, where the iterations it would have gone on
+    with (until their lack of progress stopped them) leave it."""
+    import planner.kinematics.ik as ik
+
+    model = biped.model
+    sole = frame_placement(model, biped.q_stand, "left_sole")[:3, 3]
+    tasks = [FramePositionTask("left_sole", sole + np.array([0.0, 0.0, 1.0]))]  # the knee folds up
+    settled = solve_ik(model, biped.q_stand, tasks, lock_root=True)
+    monkeypatch.setattr(ik, "_SETTLED_STEP", 0.0)
+    patient = solve_ik(model, biped.q_stand, tasks, lock_root=True)
+    assert not settled.success and not patient.success
+    assert settled.iterations < patient.iterations
+    np.testing.assert_allclose(settled.q, patient.q, atol=1e-9)
+    np.testing.assert_allclose(settled.residuals, patient.residuals, atol=1e-9)
+
+
 def test_deterministic(robot: Robot, perturb: Perturb) -> None:
     model = robot.model
     q_target = perturb(model, np.random.default_rng(11), robot.q_stand, 0.3)
