@@ -16,7 +16,9 @@ from __future__ import annotations
 
 import hashlib
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 from scipy.optimize import nnls
@@ -542,45 +544,44 @@ def _exact_and_nonnegative(G: FloatArray, wrenches: FloatArray, weights: FloatAr
     return np.asarray((weights.min(axis=1) >= 0.0) & (miss <= QUICK_RESIDUAL))
 
 
+_GENERATOR_DATA_KEPT = 512  # generator sets whose LP data are kept (a plan's phases)
 _LEAST_NORM: dict[int, tuple[FloatArray, FloatArray]] = {}
+_DUAL_ROWS: dict[int, tuple[FloatArray, tuple[FloatArray, ...]]] = {}
+Made = TypeVar("Made")
+
+
+def _per_generators(
+    memory: dict[int, tuple[FloatArray, Made]], G: FloatArray, make: Callable[[FloatArray], Made]
+) -> Made:
+    """``make(G)``, remembered in ``memory`` per read-only generators ``G`` (m, 6) (a phase's,
+    asked at every sample of a curve; a writeable ``G`` may change: made again)."""
+    if G.flags.writeable:
+        return make(G)
+    hit = memory.get(id(G))
+    if hit is not None and hit[0] is G:
+        return hit[1]
+    value = make(G)
+    if len(memory) >= _GENERATOR_DATA_KEPT:
+        memory.clear()
+    memory[id(G)] = (G, value)
+    return value
 
 
 def _least_norm(G: FloatArray) -> FloatArray:
     """(6, m): w @ it is the least-norm weights beta (m,) with G' beta = w for a wrench w
-    (6,) that the generators ``G`` (m, 6) span. Remembered per read-only ``G`` (a phase's
-    generators), as :func:`_dual_rows`."""
-    if G.flags.writeable:
-        return np.asarray(np.linalg.pinv(G.T).T, dtype=np.float64)
-    hit = _LEAST_NORM.get(id(G))
-    if hit is not None and hit[0] is G:
-        return hit[1]
-    inverse = np.asarray(np.linalg.pinv(G.T).T, dtype=np.float64)
-    if len(_LEAST_NORM) >= _DUAL_ROWS_KEPT:
-        _LEAST_NORM.clear()
-    _LEAST_NORM[id(G)] = (G, inverse)
-    return inverse
-
-
-_DUAL_ROWS: dict[int, tuple[FloatArray, tuple[FloatArray, ...]]] = {}
-_DUAL_ROWS_KEPT = 512  # generator sets whose dual LP rows are kept (a plan's phases)
+    (6,) that the generators ``G`` (m, 6) span (remembered per ``G``)."""
+    return _per_generators(
+        _LEAST_NORM, G, lambda g: np.asarray(np.linalg.pinv(g.T).T, dtype=np.float64)
+    )
 
 
 def _dual_rows(G: FloatArray) -> tuple[FloatArray, ...]:
     """The constant data of :func:`_margin_dual`'s LP for the generators ``G`` (m, 6): its
     Hessian (6, 6) (a tiny proximal term), rows [G; sum of G's rows] (m + 1, 6), upper and
-    lower bounds (m + 1,) and the equality flags (m + 1,). Remembered per read-only ``G``
-    (a phase's generators, checked at every sample of a curve). Not to be modified: they
-    stay writable only because daqp's interface takes writable buffers (it reads them)."""
-    if G.flags.writeable:
-        return _make_dual_rows(G)
-    hit = _DUAL_ROWS.get(id(G))
-    if hit is not None and hit[0] is G:
-        return hit[1]
-    rows = _make_dual_rows(G)
-    if len(_DUAL_ROWS) >= _DUAL_ROWS_KEPT:
-        _DUAL_ROWS.clear()
-    _DUAL_ROWS[id(G)] = (G, rows)
-    return rows
+    lower bounds (m + 1,) and the equality flags (m + 1,), remembered per ``G``. Not to be
+    modified: they stay writable only because daqp's interface takes writable buffers (it
+    reads them)."""
+    return _per_generators(_DUAL_ROWS, G, _make_dual_rows)
 
 
 def _make_dual_rows(G: FloatArray) -> tuple[FloatArray, ...]:
