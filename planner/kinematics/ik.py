@@ -51,7 +51,7 @@ _LM_DAMPING = 3e-4  # damping per unit of merit
 _MAX_CLAMP_ROUNDS = 8
 _PATIENCE = 10  # iterations in a row not improving the best merit by _MIN_PROGRESS: give up
 _MIN_PROGRESS = 1e-3
-_SETTLED_STEP = 1e-12  # rad or m: an undamped step this small moves nothing; stop there
+_SETTLED_STEP = 1e-12  # rad or m: a step this small at the least damping moves nothing: stop
 
 _PLACEMENT, _POSITION, _NORMAL, _COM, _AXIS = 0, 1, 2, 3, 4
 

@@ -123,7 +123,7 @@ class _Layout:
     """Index tables of one model, computed once (pybind element access costs ~1 us each)."""
 
     size: tuple[int, int, int, int]  # nq, nv, njoints, nframes: a cheap staleness check
-    limits: bytes  # every joint's lower then upper position limits: the other one
+    limits: bytes  # the lower then upper position limits of every joint: the other check
     bounded_v: IntArray
     bounded_q: IntArray
     lower: FloatArray
