@@ -938,7 +938,8 @@ def sequence_motion(
     (when given) is asked for other contact changes from there on (2PAC 7.2's last
     resort): the dynamic curve is found again from the first changed phase, joined C2 to
     the curve before, whose keyframes are kept. When no dynamic curve comes clean, 2PAC's
-    curve through the states first given is built whole; where that is not clean either
+    curve through the states first given is built whole (each keyframe's stance set back
+    on its contacts); where that is not clean either
     and contact changes were re-planned, 2PAC's curve through the re-planned states is built
     too and kept when it is clean (else the re-plans are undone). The report lists the
     re-plans (``contact_replans``) and the answer's ``states`` are the ones animated.
@@ -961,9 +962,13 @@ def sequence_motion(
         overlap: Overlap | None = None,
     ) -> BuiltMotion:
         """The whole-body motion along ``curve``; a ``trial`` (a dynamic curve) holds its
-        stance contacts rigidly and is abandoned at its first unclean phase; ``resume``
-        keeps an earlier build's keyframes before a phase (``build_motion``); ``overlap``:
-        the phases hold its states, its pairs of swings overlapping."""
+        stance contacts rigidly and is abandoned at its first unclean phase; the last resort
+        (2PAC's curve built whole, not a trial) sets each keyframe's stance back on its
+        contacts (``MotionSpec.hold_stance``): on the climbing wall, a start nudged 5 mm
+        whose dynamic trials all failed had its stance slip 5.7 mm on that curve, over the
+        5 mm tolerance (1.5 mm with it). ``resume`` keeps an earlier build's keyframes
+        before a phase (``build_motion``); ``overlap``: the phases hold its states, its
+        pairs of swings overlapping."""
         held = list(overlap.states) if overlap is not None else states
         # the second and third phase of an overlapped pair land swings that lifted off a
         # phase earlier
@@ -994,7 +999,9 @@ def sequence_motion(
                     early=early,
                 )
             )
-        spec = MotionSpec(np.asarray(states[0].q), tuple(spec_phases), curve, rate)
+        spec = MotionSpec(
+            np.asarray(states[0].q), tuple(spec_phases), curve, rate, hold_stance=not trial
+        )
         return build_motion(
             character,
             scene_bvh,

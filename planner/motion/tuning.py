@@ -18,9 +18,10 @@ STEP_SUBSTEPS = 1
 outside its fast phases: one, each keyframe's stance then set back on its contacts
 (``MotionSpec.hold_stance``, ``WholeBodyTracker.hold_stance``: the QP holds contacts with a
 dominant weight, not exactly, and one step per keyframe leaves up to 13 mm of drift), which
-takes a quarter off a step's CPU. Plans keep ``SUBSTEPS`` and no setting back: at one step,
-stairs and rubble walks lose their landings, and setting back alone changes the climbing
-wall's trial builds until its seed + 4 no longer plays."""
+takes a quarter off a step's CPU. Plans keep ``SUBSTEPS``, and set back only in their last
+resort (2PAC's curve built whole): at one step, stairs and rubble walks lose their landings,
+and setting back alone changes the climbing wall's trial builds until its seed + 4 no longer
+plays."""
 
 HOLD_STANCE_DAMPING = 1e-6
 """Damping (m^2, rad^2) of the least-norm step that sets a keyframe's stance effectors back on

@@ -332,7 +332,8 @@ def test_a_fallback_keeps_the_replanned_changes_only_when_they_play_clean(
 ) -> None:
     """When no dynamic curve comes clean and 2PAC's curve through the states first given
     does not either, 2PAC's curve through the contact changes the trials re-planned is built
-    too, and its states are the answer when it is clean; otherwise the re-plans are undone."""
+    too, and its states are the answer when it is clean; otherwise the re-plans are undone.
+    Those last-resort builds set their stance back on the contacts; the trials do not."""
     from planner.motion import sequence
 
     ctx, states = _hexapod_steps()
@@ -361,6 +362,9 @@ def test_a_fallback_keeps_the_replanned_changes_only_when_they_play_clean(
     # the last two builds: 2PAC's whole curve through the first states, then the re-planned
     whole = [s for s in given if not s.phases[0].rigid_stance]
     assert len(whole) == 2
+    # the last resort sets its stance back on the contacts after each keyframe's steps
+    assert all(s.hold_stance for s in whole)
+    assert not any(s.hold_stance for s in given if s.phases[0].rigid_stance)
     assert whole[0].phases[bad].stance is states[bad].contacts
     assert whole[1].phases[bad].stance is other[bad].contacts
     if replanned_clean:
