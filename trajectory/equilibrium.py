@@ -506,16 +506,30 @@ def holds(
     tolerance: float = EQ1_TOLERANCE,
     weights: FloatArray | None = None,
 ) -> BoolArray:
-    """:func:`holds_at`'s answers (n,) alone, most without its LP: a sample whose wrench some
-    nonnegative generator weights give (to ``QUICK_RESIDUAL``) holds, its margin being at
-    least their smallest. Tried first: the least-norm weights of the sample's wrench and,
-    given ``weights`` (n, m) in body weights (a QP's, for a wrench near each sample's), those
-    corrected by least norm to it. The other samples take the LP."""
+    """:func:`holds_at`'s answers (n,) alone, most without its LP: the samples
+    :func:`settled_by_weights` settles hold, the others take the LP."""
+    c = np.asarray(coms, dtype=np.float64).reshape(-1, 3)
+    a = np.asarray(accs, dtype=np.float64).reshape(-1, 3)
+    out = settled_by_weights(phase, c, a, weights)
+    rest = np.flatnonzero(~out)
+    if rest.size:
+        out[rest] = holds_at(phase, c[rest], a[rest], tolerance)[0]
+    return out
+
+
+def settled_by_weights(
+    phase: ContactPhase, coms: FloatArray, accs: FloatArray, weights: FloatArray | None = None
+) -> BoolArray:
+    """(n,) whether each sample (COM positions and accelerations, (n, 3) each) holds Eq. 1
+    by nonnegative generator weights that give its wrench (to ``QUICK_RESIDUAL``): its LP
+    margin is at least their smallest. Tried: the least-norm weights of the sample's wrench
+    and, given ``weights`` (n, m) in body weights (a QP's, for a wrench near each sample's),
+    those corrected by least norm to it. False says only that neither settles it."""
     c = np.asarray(coms, dtype=np.float64).reshape(-1, 3)
     a = np.asarray(accs, dtype=np.float64).reshape(-1, 3)
     G = phase.wrench_generators
     if G.shape[0] == 0 or c.shape[0] == 0:
-        return holds_at(phase, c, a, tolerance)[0]
+        return np.zeros(c.shape[0], dtype=np.bool_)
     wrenches = gravity_wrench(phase.mass, c, a) / (phase.mass * GRAVITY)
     inverse = _least_norm(G)  # (6, m)
     found = _exact_and_nonnegative(G, wrenches, wrenches @ inverse)
@@ -523,11 +537,7 @@ def holds(
         given = np.asarray(weights, dtype=np.float64).reshape(c.shape[0], G.shape[0])
         corrected = given + (wrenches - given @ G) @ inverse
         found |= _exact_and_nonnegative(G, wrenches, corrected)
-    out = found.copy()
-    rest = np.flatnonzero(~found)
-    if rest.size:
-        out[rest] = holds_at(phase, c[rest], a[rest], tolerance)[0]
-    return out
+    return found
 
 
 QUICK_RESIDUAL = 1e-9
