@@ -280,8 +280,14 @@ def collision_free(
     ctx: ContactContext, q: FloatArray, contacts: Sequence[LimbContact] = ()
 ) -> bool:
     """No self-collision and no contact of the body with the scene or obstacles at ``q``,
-    the shapes carrying ``contacts`` tested as :func:`scene_collisions` says."""
-    return not self_collides(ctx, q) and not scene_collisions(ctx, q, contacts=contacts)
+    the shapes carrying ``contacts`` tested as :func:`scene_collisions` says; remembered per
+    configuration and contact limbs and normals (what the test reads of them)."""
+    free: bool = ctx.per_configuration(
+        q,
+        ("collision_free", tuple((c.limb, c.normal.tobytes()) for c in contacts)),
+        lambda: not self_collides(ctx, q) and not scene_collisions(ctx, q, contacts=contacts),
+    )
+    return free
 
 
 def within_limits(ctx: ContactContext, q: FloatArray, tol: float = 1e-6) -> bool:

@@ -31,6 +31,7 @@ _CACHE_SIZE = 512
 # (character, offline data, value)
 _SHARED: OrderedDict[Any, tuple[Character, OfflineData, Any]] = OrderedDict()
 _SHARED_SIZE = 2048  # entries kept, the least recently used dropped first
+_MISSING = object()  # a memo's miss (its values may be None or False)
 
 
 class FailureReason(enum.Enum):
@@ -120,6 +121,7 @@ class ContactContext:
     cache: dict[Any, Any] = field(default_factory=dict, repr=False)
     work: WorkCount = field(default_factory=WorkCount, repr=False)
     by_state: dict[Any, Any] = field(default_factory=dict, repr=False)
+    by_configuration: dict[Any, Any] = field(default_factory=dict, repr=False)
 
     def cached(self, key: Any, make: Callable[[], Any]) -> Any:
         """Memoise ``make()`` under ``key`` (bounded; cleared when full)."""
@@ -148,6 +150,21 @@ class ContactContext:
             memory.clear()
         value = make()
         memory[full] = (state, value)
+        return value
+
+    def per_configuration(self, q: FloatArray, key: Any, make: Callable[[], Any]) -> Any:
+        """Memoise ``make()`` per configuration ``q`` (nq,; its exact values) and ``key``
+        (bounded; cleared when full), for a value that is a function of them and of this
+        context alone: a search checks the same configuration again (a state's collisions
+        when its COM needs no shift before a release)."""
+        full = (np.asarray(q, dtype=np.float64).tobytes(), key)
+        hit = self.by_configuration.get(full, _MISSING)
+        if hit is not _MISSING:
+            return hit
+        if len(self.by_configuration) > _CACHE_SIZE:
+            self.by_configuration.clear()
+        value = make()
+        self.by_configuration[full] = value
         return value
 
     def shared(self, key: Any, make: Callable[[], Any]) -> Any:

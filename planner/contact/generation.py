@@ -848,19 +848,26 @@ def _shift_com(
     kin_after = kinematics_of(ctx, after)
     failure = _fail(state, FailureReason.NOT_BALANCED, limb, "no balanced COM reachable")
     for depth in _SHIFT_DEPTHS:
-        tp = transition_point(
-            shrunk_equilibrium(ctx, after, depth),
-            Halfspaces(np.zeros((0, 3)), np.zeros(0)),  # equilibrium(before) contains it
-            com,
-            kin_prev=kin_before,
-            kin_next=kin_after,
-        )
-        if not tp.feasible:
-            return failure
+        equilibrium = shrunk_equilibrium(ctx, after, depth)
+        if all(p.violation(com) <= 0.0 for p in (equilibrium, kin_before, kin_after)):
+            # the COM serves both sets where it is: it is the transition point (the
+            # nearest point of the sets), without the QP (a hexapod walk's every release)
+            shifted = com
+        else:
+            tp = transition_point(
+                equilibrium,
+                Halfspaces(np.zeros((0, 3)), np.zeros(0)),  # equilibrium(before) contains it
+                com,
+                kin_prev=kin_before,
+                kin_next=kin_after,
+            )
+            if not tp.feasible:
+                return failure
+            shifted = tp.point
         for rise, keep in _SHIFT_TRIES:
             # equilibrium is a vertical prism: a higher COM keeps it and may lift the
             # trunk off a step's nosing; so may keeping the trunk's pitch
-            point = tp.point + np.array([0.0, 0.0, rise])
+            point = shifted + np.array([0.0, 0.0, rise])
             if rise > 0.0 and kin_before.violation(point) > 1e-3:
                 continue
             res = balance_ik(ctx, np.array(state.q), state.contacts, point, keep_orientation=keep)

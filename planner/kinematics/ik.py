@@ -207,7 +207,7 @@ def _compile(
             _tangent_basis(np.asarray(task.direction)),
             axes,
         )
-    has_offset = bool(np.any(task.offset != 0.0))
+    has_offset = bool(task.offset.any())
     if isinstance(task, FramePositionTask):
         return _Compiled(
             index,

@@ -2,16 +2,23 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from planner.contact import generation
 from planner.contact.checks import (
     check_state,
+    collision_free,
     com_of,
     contact_on_surface,
     effector_pose,
     hold_error,
+    kinematics_of,
+    scene_collisions,
+    self_collides,
+    shrunk_equilibrium,
 )
 from planner.contact.context import ContactContext, FailureReason
 from planner.contact.generation import (
@@ -28,6 +35,7 @@ from planner.contact.sequence import advance_body
 from planner.contact.state import ContactState
 from planner.shapes import Box
 from tests.planner.contact.twister_game import context, discs, scene, start_state
+from trajectory import Halfspaces, transition_point
 
 QUAD_FEET = {
     "lf_foot": (0.525, 0.175),
@@ -42,7 +50,7 @@ def _flat_state(character: str) -> tuple[ContactContext, ContactState]:
     ctx = context(character, "flat", twister=False)
     q0 = np.array(ctx.character.q_ref)
     limbs = [lb.name for lb in ctx.character.limbs]
-    feet = limbs if character == "quadruped" else limbs[:2]
+    feet = limbs if character in ("quadruped", "hexapod") else limbs[:2]
     points = {}
     for limb in feet:
         p = effector_pose(ctx, limb, q0)[:3, 3].copy()
@@ -144,6 +152,68 @@ def test_an_advance_asked_again_is_remembered_for_that_state_only() -> None:
     further = target.copy()
     further[0, 3] += 0.02
     assert advance_body(ctx, state, further) is not first
+
+
+def test_a_configuration_checked_again_for_collisions_is_remembered() -> None:
+    """collision_free answers a configuration and contact set it checked before from memory,
+    the same answer as checking anew; another configuration, even by 1e-9, or contacts with
+    another normal, is checked anew."""
+    ctx, state = _flat_state("quadruped")
+    sunk = np.array(state.q)
+    sunk[2] -= 0.3  # the body through the ground
+    nudged = np.array(state.q)
+    nudged[0] += 1e-9
+    for q, free in ((sunk, False), (nudged, True), (np.array(state.q), True)):
+        direct = not self_collides(ctx, q) and not scene_collisions(ctx, q, contacts=state.contacts)
+        assert direct == free
+        assert collision_free(ctx, q, state.contacts) == free
+        count = len(ctx.by_configuration)
+        assert collision_free(ctx, np.array(q), state.contacts) == free
+        assert len(ctx.by_configuration) == count  # remembered, not checked again
+    assert len(ctx.by_configuration) >= 3
+    count = len(ctx.by_configuration)
+    tilted = [replace(c, normal=np.array([0.1, 0.0, 1.0])) for c in state.contacts[:1]]
+    collision_free(ctx, np.array(state.q), tilted)
+    assert len(ctx.by_configuration) == count + 1
+
+
+def test_a_release_whose_com_serves_both_sets_keeps_it_where_it_is(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Releasing one foot of a hexapod standing on flat ground leaves its COM over the other
+    five: the release's transition point is the COM itself (what the QP finds too), and the
+    body does not move to shift it."""
+    ctx, state = _flat_state("hexapod")
+    com = com_of(ctx, state.q)
+    for limb in state.limbs:
+        after = tuple(c for c in state.contacts if c.limb != limb)
+        sets = (
+            shrunk_equilibrium(ctx, after),
+            kinematics_of(ctx, state.contacts),
+            kinematics_of(ctx, after),
+        )
+        if not all(p.violation(com) <= 0.0 for p in sets):
+            continue
+        found = transition_point(
+            sets[0],
+            Halfspaces(np.zeros((0, 3)), np.zeros(0)),
+            com,
+            kin_prev=sets[1],
+            kin_next=sets[2],
+        )
+        assert found.feasible
+        np.testing.assert_allclose(found.point, com, atol=1e-6)
+
+        def unasked(*args: object, **kwargs: object) -> None:
+            raise AssertionError("the transition QP was solved")
+
+        monkeypatch.setattr(generation, "transition_point", unasked)
+        shifted = generation._shift_com(ctx, state, after)
+        assert not isinstance(shifted, generation.ContactAttempt)
+        np.testing.assert_allclose(shifted[1], com, atol=1e-4)
+        break
+    else:
+        pytest.fail("no foot of the stance leaves the COM inside the five others")
 
 
 @pytest.mark.parametrize(
