@@ -398,22 +398,28 @@ def kinematic_slack(ctx: ContactContext, state: ContactState) -> float:
 
 
 def advance_body(
-    ctx: ContactContext, state: ContactState, root_target: FloatArray
+    ctx: ContactContext,
+    state: ContactState,
+    root_target: FloatArray,
+    slack_floor: float = -np.inf,
 ) -> ContactState | None:
     """``state`` with the body moved toward the root pose ``root_target`` (4, 4) while every
-    contact is held (whole-body IK, the root pose a soft target); None when the result is not
-    a valid state (contacts held and on their surfaces, balanced, kinematic, collision-free).
-    Remembered per state object and target in ``ctx`` (a walk stuck in place tries the same
-    advances again, cycle after cycle): asked again, the same answer, at no work."""
-    key = ("advance", np.asarray(root_target, dtype=np.float64).tobytes())
+    contact is held (whole-body IK, the root pose a soft target); None when the result leaves
+    the COM less than ``slack_floor`` m deep in the kinematic polytope of its contacts
+    (:func:`kinematic_slack`, tested first: a walk refuses such an advance whatever else
+    holds) or is not a valid state (contacts held and on their surfaces, balanced,
+    kinematic, collision-free). Remembered per state object, target and floor in ``ctx``
+    (a walk stuck in place tries the same advances again, cycle after cycle): asked again,
+    the same answer, at no work."""
+    key = ("advance", np.asarray(root_target, dtype=np.float64).tobytes(), slack_floor)
     advanced: ContactState | None = ctx.per_state(
-        state, key, lambda: _advance_body(ctx, state, root_target)
+        state, key, lambda: _advance_body(ctx, state, root_target, slack_floor)
     )
     return advanced
 
 
 def _advance_body(
-    ctx: ContactContext, state: ContactState, root_target: FloatArray
+    ctx: ContactContext, state: ContactState, root_target: FloatArray, slack_floor: float
 ) -> ContactState | None:
     """:func:`advance_body` computed."""
     tasks = [
@@ -431,6 +437,8 @@ def _advance_body(
         max_iterations=ctx.params.ik_iterations,
     )
     moved = ContactState(np.array(result.q), state.contacts)
+    if kinematic_slack(ctx, moved) < slack_floor:
+        return None
     return moved if check_state(ctx, moved).valid else None
 
 
@@ -720,11 +728,10 @@ def contact_sequence(
                 if over_body:
                     target[2, 3] = max(target[2, 3], float(current.q[2]))
                 target[2, 3] += rise
-                advanced = advance_body(ctx, current, target)
+                # refused when a leg would be left at the end of its range
+                advanced = advance_body(ctx, current, target, min(slack, _ADVANCE_SLACK))
                 if advanced is None:
                     continue
-                if kinematic_slack(ctx, advanced) < min(slack, _ADVANCE_SLACK):
-                    continue  # a leg would be left at the end of its range
                 if stranding(current, advanced):
                     continue  # a leg behind would be left where it cannot be released
                 new_s = guide.progress(advanced.q[:3], s)

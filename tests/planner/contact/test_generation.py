@@ -31,7 +31,7 @@ from planner.contact.generation import (
     stand_up,
     state_from_configuration,
 )
-from planner.contact.sequence import advance_body
+from planner.contact.sequence import advance_body, kinematic_slack
 from planner.contact.state import ContactState
 from planner.shapes import Box
 from tests.planner.contact.twister_game import context, discs, scene, start_state
@@ -214,6 +214,25 @@ def test_a_release_whose_com_serves_both_sets_keeps_it_where_it_is(
         break
     else:
         pytest.fail("no foot of the stance leaves the COM inside the five others")
+
+
+def test_an_advance_leaving_the_com_too_shallow_is_refused_before_its_checks() -> None:
+    """advance_body with a slack floor answers None, without checking the state, when the
+    advance leaves the COM shallower than the floor in its kinematic polytope, and the same
+    state as without a floor when it leaves it deeper."""
+    ctx, state = _flat_state("quadruped")
+    effector_pose(ctx, "lf_foot", state.q)
+    target = np.array(ctx.pin_data.oMi[1].homogeneous)
+    target[0, 3] += 0.05
+    free = advance_body(ctx, state, target)
+    assert free is not None
+    depth = kinematic_slack(ctx, free)
+    checked = ctx.work.states_checked
+    assert advance_body(ctx, state, target, depth + 1e-3) is None
+    assert ctx.work.states_checked == checked
+    kept = advance_body(ctx, state, target, depth - 1e-3)
+    assert kept is not None and ctx.work.states_checked == checked + 1
+    np.testing.assert_array_equal(kept.q, free.q)
 
 
 @pytest.mark.parametrize(
