@@ -118,10 +118,11 @@ def _per_state(key: tuple[object, ...], inputs: tuple[Any, ...], make: Callable[
 
 def contact_phase(character: Character, state: ContactState) -> trajectory.ContactPhase:
     """The trajectory-library phase of a state (its contact points, normals, frictions),
-    remembered per state object."""
+    remembered per contact objects (a plan's overlapped states hold its states' contacts)."""
     mass = float(character.mass)
+    contacts = state.contacts
     phase: trajectory.ContactPhase = _per_state(
-        ("phase", id(state), mass), (state,), lambda: _contact_phase(mass, state)
+        ("phase", *map(id, contacts), mass), contacts, lambda: _contact_phase(mass, state)
     )
     return phase
 
@@ -135,11 +136,11 @@ def _contact_phase(mass: float, state: ContactState) -> trajectory.ContactPhase:
 
 def phase_kinematics(data: OfflineData, state: ContactState) -> trajectory.Halfspaces | None:
     """K c <= k (world frame) from the COM polytopes of the state's effectors (2PAC Eq. 4),
-    remembered per state object and polytopes."""
+    remembered per contact objects and polytopes."""
     polytopes = tuple(data.com_constraint(c.limb).polytope for c in state.contacts)
     kinematics: trajectory.Halfspaces | None = _per_state(
-        ("kinematics", id(state), *map(id, polytopes)),
-        (state, *polytopes),
+        ("kinematics", *map(id, state.contacts), *map(id, polytopes)),
+        (*state.contacts, *polytopes),
         lambda: _phase_kinematics(state, polytopes),
     )
     return kinematics
