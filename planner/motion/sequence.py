@@ -122,7 +122,7 @@ def contact_phase(character: Character, state: ContactState) -> trajectory.Conta
     mass = float(character.mass)
     contacts = state.contacts
     phase: trajectory.ContactPhase = _per_state(
-        ("phase", *map(id, contacts), mass), contacts, lambda: _contact_phase(mass, state)
+        ("phase", mass, *map(id, contacts)), contacts, lambda: _contact_phase(mass, state)
     )
     return phase
 
