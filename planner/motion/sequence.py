@@ -939,8 +939,8 @@ def sequence_motion(
     (when given) is asked for other contact changes from there on (2PAC 7.2's last
     resort): the dynamic curve is found again from the first changed phase, joined C2 to
     the curve before, whose keyframes are kept. When no dynamic curve comes clean, 2PAC's
-    curve through the states first given is built whole (each keyframe's stance set back
-    on its contacts); where that is not clean either
+    curve through the states first given is built whole (again with each keyframe's stance
+    set back on its contacts when it is not clean as it is); where that is not clean either
     and contact changes were re-planned, 2PAC's curve through the re-planned states is built
     too and kept when it is clean (else the re-plans are undone). The report lists the
     re-plans (``contact_replans``) and the answer's ``states`` are the ones animated.
@@ -961,15 +961,14 @@ def sequence_motion(
         trial: bool = False,
         resume: tuple[BuiltMotion, int] | None = None,
         overlap: Overlap | None = None,
+        set_back: bool = False,
     ) -> BuiltMotion:
         """The whole-body motion along ``curve``; a ``trial`` (a dynamic curve) holds its
-        stance contacts rigidly and is abandoned at its first unclean phase; the last resort
-        (2PAC's curve built whole, not a trial) sets each keyframe's stance back on its
-        contacts (``MotionSpec.hold_stance``): on the climbing wall, a start nudged 5 mm
-        whose dynamic trials all failed had its stance slip 5.7 mm on that curve, over the
-        5 mm tolerance (1.5 mm with it). ``resume`` keeps an earlier build's keyframes
-        before a phase (``build_motion``); ``overlap``: the phases hold its states, its
-        pairs of swings overlapping."""
+        stance contacts rigidly and is abandoned at its first unclean phase; with
+        ``set_back``, each keyframe's stance is set back on its contacts
+        (``MotionSpec.hold_stance``, :func:`last_resort`). ``resume`` keeps an earlier
+        build's keyframes before a phase (``build_motion``); ``overlap``: the phases hold
+        its states, its pairs of swings overlapping."""
         held = list(overlap.states) if overlap is not None else states
         # the second and third phase of an overlapped pair land swings that lifted off a
         # phase earlier
@@ -1001,7 +1000,7 @@ def sequence_motion(
                 )
             )
         spec = MotionSpec(
-            np.asarray(states[0].q), tuple(spec_phases), curve, rate, hold_stance=not trial
+            np.asarray(states[0].q), tuple(spec_phases), curve, rate, hold_stance=set_back
         )
         return build_motion(
             character,
@@ -1012,6 +1011,18 @@ def sequence_motion(
             abandon_unclean=trial,
             resume=resume,
         )
+
+    def last_resort(curve: trajectory.PiecewiseBezier, times: FloatArray) -> BuiltMotion:
+        """2PAC's ``curve`` built whole (phase ``times``); when that is not clean, built
+        again with each keyframe's stance set back on its contacts, kept when that one is
+        clean. On the climbing wall a start nudged 5 mm slipped a stance contact 5.7 mm on
+        that curve, over the 5 mm tolerance (1.5 mm set back); on the quadruped's rubble,
+        two nudged starts played cleanly as they were and collided set back."""
+        plain = build(curve, times)
+        if plain.report.complete or plain.report.cut_short:
+            return plain
+        held = build(curve, times, set_back=True)
+        return held if held.report.complete else plain
 
     built: BuiltMotion | None = None
     factors: list[float] | None = None
@@ -1233,7 +1244,7 @@ def sequence_motion(
         curve = com_trajectory.curve
         times = np.asarray(com_trajectory.phase_times, dtype=np.float64)
         methods = com_trajectory.phase_methods
-        built = build(curve, times)
+        built = last_resort(curve, times)
         kept_replans = False
         if replans and not built.report.complete and not built.report.cut_short:
             # the states first given are not played cleanly even on 2PAC's curve, and a
@@ -1242,7 +1253,7 @@ def sequence_motion(
             states, com_trajectory, attractor_report = after_replans
             curve = com_trajectory.curve
             times = np.asarray(com_trajectory.phase_times, dtype=np.float64)
-            other = build(curve, times)
+            other = last_resort(curve, times)
             kept_replans = other.report.complete
             if kept_replans:
                 built, methods = other, com_trajectory.phase_methods

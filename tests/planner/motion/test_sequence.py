@@ -286,11 +286,14 @@ def test_a_step_down_keeps_the_com_within_reach_of_its_states_own_height() -> No
                 assert float(kin.A[-1] @ above - kin.b[-1]) == pytest.approx(0.01)
 
 
-def _fake_build(original: tuple[ContactState, ...], bad: int, replanned_clean: bool):  # type: ignore[no-untyped-def]
+def _fake_build(  # type: ignore[no-untyped-def]
+    original: tuple[ContactState, ...], bad: int, replanned_clean: bool, held_clean: bool = False
+):
     """A stand-in for ``build_motion`` (no tracking): a build through the ``original`` states
-    cannot play phase ``bad``, a build through re-planned states phase ``bad + 1`` (the
-    trials never come clean), and a build of 2PAC's whole curve through re-planned states is
-    clean when ``replanned_clean``. Returns the stand-in and the specs it was given."""
+    cannot play phase ``bad`` (unless ``held_clean`` and it sets its stance back), a build
+    through re-planned states phase ``bad + 1`` (the trials never come clean), and a build of
+    2PAC's whole curve through re-planned states is clean when ``replanned_clean``. Returns
+    the stand-in and the specs it was given."""
     from planner.motion.builder import BuiltMotion, MotionReport
     from planner.motion.types import Keyframe, Phase
 
@@ -301,7 +304,9 @@ def _fake_build(original: tuple[ContactState, ...], bad: int, replanned_clean: b
         first = spec.phases[bad].stance is original[bad].contacts
         fails = bad if first else bad + 1
         total = len(spec.phases)
-        clean = not abandon_unclean and not first and replanned_clean
+        clean = not abandon_unclean and (
+            (first and held_clean and spec.hold_stance) or (not first and replanned_clean)
+        )
         report = MotionReport(
             phases_animated=fails if abandon_unclean else total,
             phases_total=total,
@@ -329,6 +334,26 @@ def _fake_build(original: tuple[ContactState, ...], bad: int, replanned_clean: b
     return build, given
 
 
+def test_the_last_resort_sets_its_stance_back_only_where_that_makes_it_clean(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """When no dynamic curve comes clean, 2PAC's curve is built whole as it is and, that not
+    being clean, again with each keyframe's stance set back on its contacts: the set-back
+    build is the answer when it is clean (a climbing wall's slipping stance), the build as it
+    is otherwise (a rubble walk whose set-back legs collide)."""
+    from planner.motion import sequence
+
+    ctx, states = _hexapod_steps()
+    for held_clean in (True, False):
+        build, given = _fake_build(states, 4, replanned_clean=False, held_clean=held_clean)
+        monkeypatch.setattr(sequence, "build_motion", build)
+        motion = sequence_motion(ctx.character, ctx.data, ctx.scene.collision.bvh, states)
+        whole = [s for s in given if not s.phases[0].rigid_stance]
+        assert [s.hold_stance for s in whole] == [False, True]
+        assert motion.quality.complete == held_clean
+        assert motion.states == states
+
+
 @pytest.mark.parametrize("replanned_clean", [True, False])
 def test_a_fallback_keeps_the_replanned_changes_only_when_they_play_clean(
     monkeypatch: pytest.MonkeyPatch, replanned_clean: bool
@@ -336,7 +361,8 @@ def test_a_fallback_keeps_the_replanned_changes_only_when_they_play_clean(
     """When no dynamic curve comes clean and 2PAC's curve through the states first given
     does not either, 2PAC's curve through the contact changes the trials re-planned is built
     too, and its states are the answer when it is clean; otherwise the re-plans are undone.
-    Those last-resort builds set their stance back on the contacts; the trials do not."""
+    A last-resort build that is not clean is built again with its stance set back on the
+    contacts; the trials never set back."""
     from planner.motion import sequence
 
     ctx, states = _hexapod_steps()
@@ -362,14 +388,15 @@ def test_a_fallback_keeps_the_replanned_changes_only_when_they_play_clean(
     assert isinstance(replans, list)
     assert replans[0].startswith(f"phase {bad} could not be played")
     assert motion.report["com_method"] in ("2pac", "2pac+rest_to_rest")
-    # the last two builds: 2PAC's whole curve through the first states, then the re-planned
+    # the last builds: 2PAC's whole curve through the first states, as it is then set back
+    # (neither clean), then through the re-planned ones (set back only when not clean)
     whole = [s for s in given if not s.phases[0].rigid_stance]
-    assert len(whole) == 2
-    # the last resort sets its stance back on the contacts after each keyframe's steps
-    assert all(s.hold_stance for s in whole)
+    assert [s.hold_stance for s in whole] == [False, True, False] + (
+        [] if replanned_clean else [True]
+    )
     assert not any(s.hold_stance for s in given if s.phases[0].rigid_stance)
-    assert whole[0].phases[bad].stance is states[bad].contacts
-    assert whole[1].phases[bad].stance is other[bad].contacts
+    assert all(s.phases[bad].stance is states[bad].contacts for s in whole[:2])
+    assert all(s.phases[bad].stance is other[bad].contacts for s in whole[2:])
     if replanned_clean:
         assert motion.states == other
         assert motion.quality.complete
