@@ -118,11 +118,10 @@ def _per_state(key: tuple[object, ...], inputs: tuple[Any, ...], make: Callable[
 
 def contact_phase(character: Character, state: ContactState) -> trajectory.ContactPhase:
     """The trajectory-library phase of a state (its contact points, normals, frictions),
-    remembered per contact objects (a plan's overlapped states hold its states' contacts)."""
+    remembered per state object."""
     mass = float(character.mass)
-    contacts = state.contacts
     phase: trajectory.ContactPhase = _per_state(
-        ("phase", mass, *map(id, contacts)), contacts, lambda: _contact_phase(mass, state)
+        ("phase", id(state), mass), (state,), lambda: _contact_phase(mass, state)
     )
     return phase
 
@@ -136,11 +135,11 @@ def _contact_phase(mass: float, state: ContactState) -> trajectory.ContactPhase:
 
 def phase_kinematics(data: OfflineData, state: ContactState) -> trajectory.Halfspaces | None:
     """K c <= k (world frame) from the COM polytopes of the state's effectors (2PAC Eq. 4),
-    remembered per contact objects and polytopes."""
+    remembered per state object and polytopes."""
     polytopes = tuple(data.com_constraint(c.limb).polytope for c in state.contacts)
     kinematics: trajectory.Halfspaces | None = _per_state(
-        ("kinematics", *map(id, state.contacts), *map(id, polytopes)),
-        (*state.contacts, *polytopes),
+        ("kinematics", id(state), *map(id, polytopes)),
+        (state, *polytopes),
         lambda: _phase_kinematics(state, polytopes),
     )
     return kinematics
