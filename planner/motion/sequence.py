@@ -1020,8 +1020,8 @@ def sequence_motion(
         plain = build(curve, times)
         if plain.report.complete or plain.report.cut_short:
             return plain
-        held = build(curve, times, set_back=True)
-        return held if held.report.complete else plain
+        set_back = build(curve, times, set_back=True)
+        return set_back if set_back.report.complete else plain
 
     built: BuiltMotion | None = None
     factors: list[float] | None = None

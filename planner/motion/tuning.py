@@ -20,9 +20,8 @@ outside its fast phases: one, each keyframe's stance then set back on its contac
 dominant weight, not exactly, and one step per keyframe leaves up to 13 mm of drift), which
 takes a quarter off a step's CPU. Plans keep ``SUBSTEPS``, and set back only in their last
 resort (2PAC's curve built whole) when it is not clean without: at one step, stairs and
-rubble walks lose their landings,
-and setting back alone changes the climbing wall's trial builds until its seed + 4 no longer
-plays."""
+rubble walks lose their landings, and setting back alone changes the climbing wall's trial
+builds until its seed + 4 no longer plays."""
 
 HOLD_STANCE_DAMPING = 1e-6
 """Damping (m^2, rad^2) of the least-norm step that sets a keyframe's stance effectors back on
