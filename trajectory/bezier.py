@@ -206,6 +206,13 @@ class PiecewiseBezier:
             np.searchsorted(self._breaks, tt, side="right") - 1, 0, len(self.segments) - 1
         )
         out = np.zeros((tt.shape[0], self.segments[0].dim))
+        if tt.shape[0] > 1 and np.all(idx[1:] >= idx[:-1]):
+            # increasing times: each segment's are a run (the same rows as a mask takes)
+            cuts = [0, *(np.flatnonzero(idx[1:] != idx[:-1]) + 1).tolist(), tt.shape[0]]
+            for a, b in itertools.pairwise(cuts):
+                seg = self.segments[int(idx[a])]
+                out[a:b] = seg(np.clip(tt[a:b], seg.t0, seg.t1))
+            return out if np.ndim(t) else out[0]
         for i in np.unique(idx):
             mask = idx == i
             seg = self.segments[i]

@@ -811,51 +811,58 @@ def _wrench_rows(
 ) -> tuple[sparse.csr_matrix, FloatArray]:
     """Eq. 1 at every collocation sample, linearised about ``lin`` (per phase, the sample
     positions and accelerations), in body weights: G' beta - w_lin(c, a) = w_const; six rows
-    per sample, phase by phase."""
-    data: list[FloatArray] = []
-    ri: list[NDArray[Any]] = []
-    ci: list[NDArray[Any]] = []
-    rhs: list[FloatArray] = []
+    per sample, phase by phase. Built for every sample at once (S samples in all)."""
+    counts = np.array([b.basis.shape[0] for b in bases], dtype=np.int64)
+    phase_of = np.repeat(np.arange(len(phases)), counts)  # (S,)
+    # each phase's duration squared as a scalar (numpy's array square rounds otherwise)
+    squares = np.array([(times[j + 1] - times[j]) ** 2 for j in range(len(phases))])
+    basis = np.concatenate([b.basis for b in bases])  # (S, d + 1)
+    basis2 = np.concatenate([b.basis2 for b in bases]) / squares[phase_of][:, None]
+    c_bar = np.concatenate([c for c, _ in lin])  # (S, 3) each
+    a_bar = np.concatenate([a for _, a in lin])
+    n_s = c_bar.shape[0]
     gvec = np.array([0.0, 0.0, -GRAVITY])
-    row = 0
-    for j, phase in enumerate(phases):
-        basis, basis2 = bases[j].basis, bases[j].basis2
-        gens = phase.wrench_generators  # (m, 6): G' beta = w / (m g), beta in body weights
-        c_bar, a_bar = lin[j]  # (s, 3) each
-        n_s = c_bar.shape[0]
-        duration = times[j + 1] - times[j]
-        cols = np.array([layout.point(j, i) for i in range(basis.shape[1])])
-        curve_cols = (cols[:, None] + np.arange(3)[None, :]).ravel()  # (3 (d + 1),)
-        # per unit mass: force a - g; torque c x (a - g) ~ -[a_-g]x c + [c_]x a - c_ x a_
-        dc = np.zeros((n_s, 6, 3))
-        da = np.zeros((n_s, 6, 3))
-        da[:, :3] = np.eye(3)
-        dc[:, 3:] = -_skews(a_bar - gvec)
-        da[:, 3:] = _skews(c_bar)
-        # (s, 6, d + 1, 3) -> (6 s, 3 (d + 1)), columns in the order of curve_cols
-        block = (
-            -(
-                basis[:, None, :, None] * dc[:, :, None, :]
-                + (basis2 / duration**2)[:, None, :, None] * da[:, :, None, :]
-            )
-            / GRAVITY
+    # per unit mass: force a - g; torque c x (a - g) ~ -[a_-g]x c + [c_]x a - c_ x a_
+    dc = np.zeros((n_s, 6, 3))
+    da = np.zeros((n_s, 6, 3))
+    da[:, :3] = np.eye(3)
+    dc[:, 3:] = -_skews(a_bar - gvec)
+    da[:, 3:] = _skews(c_bar)
+    # (S, 6, d + 1, 3) -> (6 S, 3 (d + 1)), columns point by point, x y z each
+    block = (
+        -(
+            basis[:, None, :, None] * dc[:, :, None, :]
+            + basis2[:, None, :, None] * da[:, :, None, :]
         )
-        rows = np.arange(row, row + 6 * n_s)
-        ri.append(np.repeat(rows, curve_cols.size))
-        ci.append(np.tile(curve_cols, rows.size))
-        data.append(block.ravel())
-        firsts = np.asarray(layout.weights_at[j])
-        m = gens.shape[0]
-        ri.append(np.repeat(rows, m))
-        ci.append(np.repeat(firsts, 6 * m) + np.tile(np.arange(m), 6 * n_s))
-        data.append(np.tile(gens.T.ravel(), n_s))
-        torque = -np.cross(c_bar, a_bar)
-        rhs.append((np.hstack([np.tile(-gvec, (n_s, 1)), torque]) / GRAVITY).ravel())
-        row += 6 * n_s
-    matrix = sparse.coo_matrix(
-        (np.concatenate(data), (np.concatenate(ri), np.concatenate(ci))), shape=(row, layout.n)
+        / GRAVITY
     )
-    return matrix.tocsr(), np.concatenate(rhs)
+    # each row: the 3 (d + 1) control point coordinates of its phase, then its sample's m
+    # generator weights (row 6 k + r of sample k has G[:, r]); columns increasing (CSR)
+    width = 3 * layout.points
+    m_of = np.asarray(layout.generators, dtype=np.int64)[phase_of]  # (S,)
+    per_row = np.repeat(m_of, 6)  # (6 S,)
+    indptr = np.zeros(6 * n_s + 1, dtype=np.int64)
+    np.cumsum(width + per_row, out=indptr[1:])
+    total = int(indptr[-1])
+    offset = np.arange(total) - np.repeat(indptr[:-1], width + per_row)  # within its row
+    on_curve = offset < width
+    firsts = np.concatenate([np.asarray(f, dtype=np.int64) for f in layout.weights_at])
+    curve_cols = (phase_of * width)[:, None] + np.arange(width)  # (S, 3 (d + 1))
+    data = np.empty(total)
+    indices = np.empty(total, dtype=np.int64)
+    data[on_curve] = block.ravel()
+    indices[on_curve] = np.repeat(curve_cols, 6, axis=0).ravel()
+    data[~on_curve] = np.concatenate(
+        [
+            np.tile(phase.wrench_generators.T.ravel(), int(count))
+            for phase, count in zip(phases, counts, strict=True)
+        ]
+    )
+    indices[~on_curve] = np.repeat(firsts, 6 * m_of) + offset[~on_curve] - width
+    torque = -np.cross(c_bar, a_bar)
+    rhs = (np.hstack([np.tile(-gvec, (n_s, 1)), torque]) / GRAVITY).ravel()
+    matrix = sparse.csr_matrix((data, indices, indptr), shape=(6 * n_s, layout.n))
+    return matrix, rhs
 
 
 def _cost(

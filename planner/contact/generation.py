@@ -353,9 +353,16 @@ def _bound(surface: Surface) -> float:
 
 
 def _patch_radius(ctx: ContactContext, limb: str) -> float:
-    spec = ctx.character.limb(limb)
-    pts = spec.contact_points() - spec.offset
-    return float(np.max(np.linalg.norm(pts[:, :2], axis=1))) + 0.001
+    """m, the radius of ``limb``'s contact patch around its effector, plus a millimetre
+    (remembered per character)."""
+
+    def make() -> float:
+        spec = ctx.character.limb(limb)
+        pts = spec.contact_points() - spec.offset
+        return float(np.max(np.linalg.norm(pts[:, :2], axis=1))) + 0.001
+
+    radius: float = ctx.shared(("patch_radius", limb), make)
+    return radius
 
 
 def _clear_of(

@@ -7,6 +7,7 @@ closest); every query returns indices in ascending order, i.e. best-ranked first
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -30,6 +31,15 @@ def voxel_keys(cells: NDArray[np.int64]) -> IntArray:
     """(n,) int64 keys of (n, 3) integer voxel coordinates (21 bits per axis)."""
     c = (cells + _BIAS) & _MASK
     return np.asarray((c[:, 0] << (2 * _BITS)) | (c[:, 1] << _BITS) | c[:, 2], dtype=np.int64)
+
+
+@lru_cache(maxsize=16)
+def _cube_cells(span: int) -> IntArray:
+    """(span^3, 3) the integer offsets of a cube of ``span`` cells a side, x slowest
+    (read-only)."""
+    grid = np.stack(np.meshgrid(*(np.arange(span),) * 3, indexing="ij"), -1).reshape(-1, 3)
+    grid.flags.writeable = False
+    return grid
 
 
 @dataclass(frozen=True, slots=True)
@@ -92,8 +102,7 @@ class SampleDatabase:
         span = int((hi_cells - lo_cells).max()) + 1
         if span**3 * len(lo_cells) > 8 * len(self.keys) + 4096:
             return np.arange(len(self), dtype=np.int64)  # scanning everything is cheaper
-        grid = np.stack(np.meshgrid(*(np.arange(span),) * 3, indexing="ij"), -1).reshape(-1, 3)
-        cells = lo_cells[:, None, :] + grid[None, :, :]
+        cells = lo_cells[:, None, :] + _cube_cells(span)[None, :, :]
         valid = np.all(cells <= hi_cells[:, None, :], axis=2)
         keys = voxel_keys(cells[valid])
         slot = self._match(keys)
