@@ -283,6 +283,65 @@ def test_rows_left_out_still_make_an_infeasible_qp_infeasible() -> None:
         )
 
 
+def _first_rounds(
+    monkeypatch: pytest.MonkeyPatch, share: float
+) -> tuple[trajectory.DynamicCom | None, list[tuple[Any, Any, bool]]]:
+    """The wall walk of the lazy-row test solved near a reference (the curve found without
+    the wall, swaying 8.5 mm across it) with ``PREDICTED_ROW_SHARE`` at ``share``; per
+    :func:`_solve_lazy` call, its curve rows, the rows it started with and whether its
+    answer kept every row."""
+    phases, durations, start, end = _walk(5, 0.4, 0.15)
+    free = trajectory.dynamic_com(phases, durations, start, end)
+    assert free is not None
+    wall = Halfspaces(np.array([[0.0, 1.0, 0.0]]), np.array([0.004]))
+    calls: list[tuple[Any, Any, bool]] = []
+    original = trajectory.dynamic._solve_lazy
+
+    def recording(*args: Any, settle: bool = True) -> Any:
+        out = original(*args, settle=settle)
+        calls.append((args[5], args[-1].copy(), out[3] is None))
+        return out
+
+    monkeypatch.setattr(trajectory.dynamic, "_solve_lazy", recording)
+    monkeypatch.setattr(trajectory.dynamic, "PREDICTED_ROW_SHARE", share)
+    found = trajectory.dynamic_com(
+        phases,
+        durations,
+        start,
+        end,
+        kinematics=[wall] * 5,
+        reference=free.curve,
+        reference_times=list(free.phase_times),
+    )
+    monkeypatch.undo()
+    return found, calls
+
+
+def test_kinematic_rows_near_the_reference_are_in_the_first_round(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """``PREDICTED_ROW_DEPTH``: the wall's rows, which the reference comes within 5 cm of,
+    are in the first round's QP (no trust box row is), and its answer keeps every row: no
+    round only adds them. Left out (``PREDICTED_ROW_SHARE`` 0: too many to predict), the
+    first answer crosses the wall and is only a linearisation point. Either curve passes
+    Eq. 1 and holds the wall."""
+    predicted, calls = _first_rounds(monkeypatch, trajectory.dynamic.PREDICTED_ROW_SHARE)
+    curve_rows, first, complete = calls[0]
+    per = curve_rows.points * 3
+    kinematic = np.ones(curve_rows.size, dtype=bool)
+    for offset in curve_rows.offsets[:-1]:
+        kinematic[offset : offset + 2 * per] = False
+    assert np.array_equal(first, kinematic)  # every wall row, no box row
+    assert complete
+    lazy, lazy_calls = _first_rounds(monkeypatch, 0.0)
+    assert not lazy_calls[0][1].any() and not lazy_calls[0][2]
+    assert len(calls) < len(lazy_calls)
+    for found in (predicted, lazy):
+        assert found is not None and found.valid
+        y = found.curve(np.linspace(0, found.curve.t1, 300))[:, 1]
+        assert y.max() <= 0.004 + trajectory.dynamic.KINEMATIC_SLACK + 1e-9
+
+
 def _unrefined_runs_replaced(
     monkeypatch: pytest.MonkeyPatch, replaced: Callable[[Any], Any]
 ) -> list[bool]:
