@@ -27,7 +27,7 @@ from scipy.linalg import lapack
 from planner.kinematics.model import (
     bounded_dofs,
     frame_id,
-    frame_support_dofs,
+    frames_support_dofs,
     has_free_flyer_root,
     scratch_data,
 )
@@ -151,8 +151,14 @@ def resolve_active(model: pin.Model, active: ArrayLike | None, lock_root: bool) 
 
 
 def _compile(
-    model: pin.Model, index: int, task: TargetTask, active_mask: NDArray[np.bool_]
+    model: pin.Model,
+    index: int,
+    task: TargetTask,
+    active_mask: NDArray[np.bool_],
+    support: IntArray | None,
 ) -> _Compiled:
+    """The task ``index`` compiled; ``support``: the velocity indices that move its frame
+    (:func:`frames_support_dofs`; None for a COM task)."""
     zeros = np.zeros(3)
     no_tangents = np.zeros((2, 3))
     axes = np.ones(3, dtype=bool)
@@ -175,7 +181,8 @@ def _compile(
             axes,
         )
     fid = frame_id(model, task.frame)
-    coupled = bool(active_mask[frame_support_dofs(model, fid)].any())
+    assert support is not None
+    coupled = bool(active_mask[support].any())
     if isinstance(task, FramePlacementTask):
         se3 = pin.SE3(task.target[:3, :3].copy(), task.target[:3, 3].copy())
         return _Compiled(
@@ -334,10 +341,12 @@ class IkProblem:
         act = resolve_active(model, active, lock_root)
         mask = np.zeros(model.nv, dtype=bool)
         mask[act] = True
+        targeted = [(i, t) for i, t in enumerate(tasks) if not isinstance(t, PostureTask)]
+        framed = [t.frame for _, t in targeted if not isinstance(t, ComTask)]
+        supports = iter(frames_support_dofs(model, framed))
         compiled = [
-            _compile(model, i, t, mask)
-            for i, t in enumerate(tasks)
-            if not isinstance(t, PostureTask)
+            _compile(model, i, t, mask, None if isinstance(t, ComTask) else next(supports))
+            for i, t in targeted
         ]
         self._by_index = {c.index: c for c in compiled}
         posture_index = next((i for i, t in enumerate(tasks) if isinstance(t, PostureTask)), -1)

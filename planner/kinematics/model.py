@@ -114,8 +114,15 @@ def limb_reach(
 
 def frame_support_dofs(model: pin.Model, frame: int | str) -> IntArray:
     """Read-only velocity indices (k,) of every joint that moves ``frame`` (root included)."""
+    return frames_support_dofs(model, (frame,))[0]
+
+
+def frames_support_dofs(model: pin.Model, frames: Sequence[int | str]) -> list[IntArray]:
+    """:func:`frame_support_dofs` of each of ``frames``, the model's tables checked once (an
+    IK problem asks for every task's frame)."""
     layout = _layout(model)
-    return _support_of_joint(model, layout, int(layout.frame_parent[frame_id(model, frame)]))
+    parents = layout.frame_parent
+    return [_support_of_joint(model, layout, int(parents[frame_id(model, f)])) for f in frames]
 
 
 @dataclass(frozen=True, slots=True)
