@@ -859,7 +859,7 @@ def _wrench_rows(
     per sample, phase by phase. Built for every sample at once (S samples in all)."""
     counts = np.array([b.basis.shape[0] for b in bases], dtype=np.int64)
     phase_of = np.repeat(np.arange(len(phases)), counts)  # (S,)
-    # each phase's duration squared as a scalar (numpy's array square rounds otherwise)
+    # each phase's duration squared alone: an array's ** 2 moved some by an ulp (and a plan)
     squares = np.array([(times[j + 1] - times[j]) ** 2 for j in range(len(phases))])
     basis = np.concatenate([b.basis for b in bases])  # (S, d + 1)
     basis2 = np.concatenate([b.basis2 for b in bases]) / squares[phase_of][:, None]
