@@ -155,13 +155,14 @@ def _superseded(
     point on or behind the other's plane (``WITNESS_SUPERSEDE_TOLERANCE``)."""
     if not memory:
         return memory
-    point, normal = row[:3], row[3:6]
+    # plain floats: a handful of 3-vectors per call, where numpy's per-call cost dominates
+    px, py, pz, nx, ny, nz = row[:6].tolist()
     tolerance = tuning.WITNESS_SUPERSEDE_TOLERANCE
     kept = []
     for entry in memory:
-        old = entry[1]
-        gap = old[:3] - point
-        if float(normal @ gap) > tolerance or float(old[3:6] @ gap) < -tolerance:
+        ox, oy, oz, mx, my, mz = entry[1][:6].tolist()
+        gx, gy, gz = ox - px, oy - py, oz - pz
+        if nx * gx + ny * gy + nz * gz > tolerance or mx * gx + my * gy + mz * gz < -tolerance:
             kept.append(entry)  # concave: the new plane does not fence the old feature
     return kept
 
