@@ -255,10 +255,10 @@ def validate_dynamics(
     within ``tol`` N per kg (``trajectory.equilibrium.holds_at``, after the samples
     ``settled_by_weights`` settles)."""
     acc_curve = curve.derivative(2)
-    per_phase = []
-    for j in range(len(phases)):
-        a, b = float(phase_times[j]), float(phase_times[j + 1])
-        per_phase.append(np.linspace(a, b, n_samples + 2)[1:-1] if b > a else np.full(1, a))
+    spans = [(float(phase_times[j]), float(phase_times[j + 1])) for j in range(len(phases))]
+    per_phase = [
+        np.linspace(a, b, n_samples + 2)[1:-1] if b > a else np.full(1, a) for a, b in spans
+    ]
     if not per_phase:
         return ()
     # every phase's samples in one evaluation of each curve
@@ -267,7 +267,7 @@ def validate_dynamics(
     positions, accelerations = curve(every), acc_curve(every)
     reports = []
     for j, phase in enumerate(phases):
-        ts, a, b = per_phase[j], float(phase_times[j]), float(phase_times[j + 1])
+        (a, b), ts = spans[j], per_phase[j]
         cs, accs = positions[ends[j] : ends[j + 1]], accelerations[ends[j] : ends[j + 1]]
         valid = settled_by_weights(phase, cs, accs)
         rest = np.flatnonzero(~valid)  # the LP answers them, and gives the margins of those failing
